@@ -1,0 +1,94 @@
+#include "common/stability/analyzer.hpp"
+
+#include <algorithm>
+
+namespace teleop::stability {
+
+LoopEvaluator::LoopEvaluator(const TeleopParams& params, bool master_wall_used)
+    : model_(params, master_wall_used) {
+  human_matters_ = model_.human_matters() && params.human.kind != HumanKind::kNone;
+  if (model_.human_matters()) {
+    humans_ = human_samples(params.human);
+  } else {
+    humans_.push_back(HumanSample{});  // the slave alone: any human gives the same spectrum
+  }
+  master_plants_.reserve(humans_.size());
+  for (const HumanSample& h : humans_) master_plants_.push_back(model_.master_plant(h.impedance));
+}
+
+Spectrum LoopEvaluator::spectrum(std::size_t human, double kmvf, double ksvf,
+                                 bool estimate_error) const {
+  const std::vector<ModelBlock> blocks = model_.build(master_plants_[human], kmvf, ksvf);
+  std::vector<Spectrum> parts;
+  parts.reserve(blocks.size());
+  for (const ModelBlock& b : blocks) {
+    parts.push_back(compute_spectrum(b.a, model_.period_s(), b.structural_zeros, estimate_error));
+  }
+  return parts.size() == 1 ? parts.front() : merge(parts);
+}
+
+BandResult LoopEvaluator::sweep(double kmvf, double ksvf) const {
+  BandResult result;
+  result.min_damping_ratio = 2.0;
+  bool any_uncertain = false;
+  bool any_unstable = false;
+  // Blocks without the master do not depend on the human: their spectrum is computed once.
+  std::optional<Spectrum> human_free;
+  for (std::size_t i = 0; i < humans_.size(); ++i) {
+    const std::vector<ModelBlock> blocks = model_.build(master_plants_[i], kmvf, ksvf);
+    std::vector<Spectrum> parts;
+    for (const ModelBlock& b : blocks) {
+      if (!b.includes_master) {
+        if (!human_free) {
+          human_free = compute_spectrum(b.a, model_.period_s(), b.structural_zeros, false);
+        }
+        parts.push_back(*human_free);
+      } else {
+        parts.push_back(compute_spectrum(b.a, model_.period_s(), b.structural_zeros, false));
+      }
+    }
+    double zeta = 2.0;
+    double radius = 0.0;
+    for (const Spectrum& s : parts) {
+      zeta = std::min(zeta, s.min_damping_ratio);
+      radius = std::max(radius, s.spectral_radius);
+      any_unstable = any_unstable || s.verdict == Verdict::kUnstable;
+      any_uncertain = any_uncertain || s.verdict == Verdict::kUncertain;
+    }
+    if (zeta < result.min_damping_ratio) {
+      result.min_damping_ratio = zeta;
+      result.worst_index = i;
+    }
+    result.spectral_radius = std::max(result.spectral_radius, radius);
+  }
+  result.verdict = any_unstable    ? Verdict::kUnstable
+                   : any_uncertain ? Verdict::kUncertain
+                                   : Verdict::kStable;
+  return result;
+}
+
+bool meets_requirement(const BandResult& r, double required_damping_ratio) {
+  return r.verdict == Verdict::kStable && r.min_damping_ratio >= required_damping_ratio;
+}
+
+AnalysisResult analyze(const TeleopParams& params) {
+  const LoopEvaluator ev(params);
+  const double kmvf = params.master_fixture.stiffness_N_per_m;
+  const double ksvf = params.slave_fixture.stiffness_N_per_m;
+  const BandResult band = ev.sweep(kmvf, ksvf);
+  AnalysisResult out;
+  out.structure = ev.model().structure();
+  out.humans_evaluated = ev.model().human_matters() ? ev.human_count() : 0;
+  out.spectrum = ev.spectrum(band.worst_index, kmvf, ksvf, true);
+  out.verdict = band.verdict;
+  // The detailed spectrum carries error bounds; it may only make the verdict less certain.
+  if (out.verdict == Verdict::kStable && out.spectrum.verdict != Verdict::kStable) {
+    out.verdict = out.spectrum.verdict;
+  }
+  out.spectral_radius = band.spectral_radius;
+  out.min_damping_ratio = band.min_damping_ratio;
+  if (ev.human_matters()) out.worst_human = ev.human(band.worst_index);
+  return out;
+}
+
+}  // namespace teleop::stability

@@ -1,0 +1,62 @@
+// Worst-case-human analysis of one teleoperator (Abbott-Okamura Fig. 5).
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <vector>
+
+#include "common/core/teleop_params.hpp"
+#include "common/stability/discrete_model.hpp"
+#include "common/stability/human_grid.hpp"
+#include "common/stability/spectrum.hpp"
+
+namespace teleop::stability {
+
+// The worst case over every human at one pair of fixture stiffnesses.
+struct BandResult {
+  Verdict verdict{Verdict::kStable};  // unstable if any human is, else uncertain if any is
+  double min_damping_ratio{1.0};
+  double spectral_radius{0.0};
+  std::size_t worst_index{0};  // the human with the lowest damping ratio
+};
+
+// Holds what does not change between evaluations: the model structure, the humans and their
+// discretised master plants, so a stiffness search pays only for the eigenvalues.
+class LoopEvaluator {
+ public:
+  explicit LoopEvaluator(const TeleopParams& params, bool master_wall_used = false);
+
+  [[nodiscard]] const DiscreteModel& model() const { return model_; }
+  [[nodiscard]] std::size_t human_count() const { return humans_.size(); }
+  [[nodiscard]] const HumanSample& human(std::size_t i) const { return humans_[i]; }
+  [[nodiscard]] bool human_matters() const { return human_matters_; }
+
+  [[nodiscard]] Spectrum spectrum(std::size_t human, double master_fixture_N_per_m,
+                                  double slave_fixture_N_per_m, bool estimate_error) const;
+  [[nodiscard]] BandResult sweep(double master_fixture_N_per_m,
+                                 double slave_fixture_N_per_m) const;
+
+ private:
+  DiscreteModel model_;
+  bool human_matters_{true};
+  std::vector<HumanSample> humans_{};
+  std::vector<ZohPlant> master_plants_{};
+};
+
+struct AnalysisResult {
+  Verdict verdict{Verdict::kStable};
+  double spectral_radius{0.0};
+  double min_damping_ratio{1.0};
+  std::optional<HumanSample> worst_human{};  // empty when the human does not matter
+  Spectrum spectrum{};                       // of the worst human's loop, with error bounds
+  Structure structure{Structure::kBilateral};
+  std::size_t humans_evaluated{0};
+};
+
+// The configured teleoperator as it stands (its own fixture stiffnesses).
+[[nodiscard]] AnalysisResult analyze(const TeleopParams& params);
+
+// True when a band result meets the configured requirement (stable and zeta >= required).
+[[nodiscard]] bool meets_requirement(const BandResult& r, double required_damping_ratio);
+
+}  // namespace teleop::stability

@@ -1,0 +1,177 @@
+#include "common/stability/discrete_model.hpp"
+
+#include <cmath>
+#include <numbers>
+
+namespace teleop::stability {
+
+const char* to_string(Structure s) {
+  switch (s) {
+    case Structure::kBilateral:
+      return "bilateral";
+    case Structure::kDecoupled:
+      return "decoupled";
+    case Structure::kSlaveOnly:
+      return "slave_only";
+  }
+  return "bilateral";
+}
+
+DiscreteModel::DiscreteModel(const TeleopParams& params, bool master_wall_used)
+    : p_(params), period_s_(params.period_s()) {
+  if (p_.velocity_cutoff_hz > 0.0) {
+    filter_r_ = std::exp(-2.0 * std::numbers::pi * p_.velocity_cutoff_hz * period_s_);
+    filter_a_ = -std::expm1(-2.0 * std::numbers::pi * p_.velocity_cutoff_hz * period_s_);
+  }
+  slave_plant_ =
+      discretize_plant(p_.slave_device.mass_kg, p_.slave_device.damping_Ns_per_m, 0.0, period_s_);
+
+  const Gains& g = p_.gains;
+  const double beta = p_.scaling.force;
+  // F_e is exogenous and constant about the equilibrium, so K_fm never closes a loop here.
+  const bool master_feels_slave = beta != 0.0 && (g.kpm != 0.0 || g.kdm != 0.0);
+  const bool slave_follows_master = g.kps != 0.0 || g.kds != 0.0;
+  const bool master_actuated = master_feels_slave || g.kvm != 0.0 ||
+                               p_.master_fixture.stiffness_N_per_m != 0.0 || master_wall_used;
+  if (master_feels_slave && slave_follows_master) {
+    structure_ = Structure::kBilateral;
+  } else if (master_actuated) {
+    structure_ = Structure::kDecoupled;
+  } else {
+    structure_ = Structure::kSlaveOnly;
+  }
+}
+
+ZohPlant DiscreteModel::master_plant(const HumanImpedance& human) const {
+  return discretize_plant(p_.master_device.mass_kg + human.mass_kg,
+                          p_.master_device.damping_Ns_per_m + human.damping_Ns_per_m,
+                          human.stiffness_N_per_m, period_s_);
+}
+
+std::vector<ModelBlock> DiscreteModel::build(const ZohPlant& master_plant, double kmvf,
+                                             double ksvf) const {
+  std::vector<ModelBlock> blocks;
+  switch (structure_) {
+    case Structure::kBilateral:
+      blocks.push_back(build_block(true, true, master_plant, kmvf, ksvf));
+      break;
+    case Structure::kDecoupled:
+      blocks.push_back(build_block(true, false, master_plant, kmvf, ksvf));
+      blocks.push_back(build_block(false, true, master_plant, kmvf, ksvf));
+      break;
+    case Structure::kSlaveOnly:
+      blocks.push_back(build_block(false, true, master_plant, kmvf, ksvf));
+      break;
+  }
+  return blocks;
+}
+
+ModelBlock DiscreteModel::build_block(bool with_master, bool with_slave,
+                                      const ZohPlant& master_plant, double kmvf,
+                                      double ksvf) const {
+  using Row = Eigen::RowVectorXd;
+  const Gains& g = p_.gains;
+  const double t = period_s_;
+  const double alpha = p_.scaling.position;
+  const double beta = p_.scaling.force;
+  const int delay = (with_master && with_slave) ? p_.round_trip_delay_samples : 0;
+
+  // Velocities are carried as v*T (metres) so that every plant state has the same scale.
+  int n = 0;
+  const int ixm = with_master ? n : -1;
+  n += with_master ? 2 : 0;
+  const int ixs = with_slave ? n : -1;
+  n += with_slave ? 2 : 0;
+  const int id0 = n;  // delayed master positions x_m(k-1) ... x_m(k-d)
+  n += delay;
+
+  auto unit = [&](int i, int size) {
+    Row r = Row::Zero(size);
+    r(i) = 1.0;
+    return r;
+  };
+  // The velocity terms of each controller are filtered together: one filter (or one
+  // backward-difference memory) state per controller, so the non-trivial modes number 6 + d.
+  auto velocity_signals = [&](int size) {
+    Row em = Row::Zero(size);
+    Row es = Row::Zero(size);
+    if (with_master) {
+      em += (beta * g.kdm + g.kvm) * unit(ixm, size);
+      if (with_slave) em -= beta * g.kdm / alpha * unit(ixs, size);
+    }
+    if (with_slave) {
+      es -= (g.kds + g.kvs) * unit(ixs, size);
+      if (with_master) {
+        const int src = delay > 0 ? id0 + delay - 1 : ixm;
+        es += g.kds * alpha * unit(src, size);
+      }
+    }
+    return std::pair{em, es};
+  };
+  const int plant_states = n;
+  const auto [em0, es0] = velocity_signals(plant_states);
+  const bool has_fm = with_master && !em0.isZero(0.0);
+  const bool has_fs = with_slave && !es0.isZero(0.0);
+  // With no low-pass, a master velocity signal proportional to the slave's (symmetric gains)
+  // makes the two backward-difference memories proportional too: one state serves both, and
+  // the paper's realisation shows the redundant one as its third identically-zero eigenvalue.
+  double shared_ratio = 0.0;  // e_m = shared_ratio * e_s when the memory is shared
+  bool shared = false;
+  if (has_fm && has_fs && filter_r_ == 0.0) {
+    shared_ratio = em0.dot(es0) / es0.squaredNorm();
+    shared = (em0 - shared_ratio * es0).cwiseAbs().maxCoeff() <=
+             1e-14 * em0.cwiseAbs().maxCoeff();
+  }
+  n += (has_fm && !shared ? 1 : 0) + (has_fs ? 1 : 0);
+  Row em = Row::Zero(n);
+  Row es = Row::Zero(n);
+  em.head(plant_states) = em0;
+  es.head(plant_states) = es0;
+  const int ifs = has_fs ? id0 + delay : -1;
+  const int ifm = has_fm ? (shared ? ifs : id0 + delay + (has_fs ? 1 : 0)) : -1;
+  const double fm_scale = shared ? shared_ratio : 1.0;
+
+  // H(z) = a (z - 1) / (T (z - r)): out(k) = (a/T) e(k) + f(k), f(k+1) = r f(k) - (a^2/T) e(k).
+  const double a = filter_a_;
+  const double r = filter_r_;
+  Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+
+  if (with_master) {
+    Row pos_err = unit(ixm, n);
+    if (with_slave) pos_err -= unit(ixs, n) / alpha;
+    Row fam = beta * g.kpm * pos_err + kmvf * unit(ixm, n);
+    if (has_fm) fam += (a / t) * em + fm_scale * unit(ifm, n);
+    const ZohPlant& pm = master_plant;
+    // The master is pushed by -F_am (F_h - F_am = Z_m X_m); F_h* is constant here.
+    A.row(ixm) = pm.phi(0, 0) * unit(ixm, n) + pm.phi(0, 1) / t * unit(ixm + 1, n) -
+                 pm.gamma(0) * fam;
+    A.row(ixm + 1) = t * pm.phi(1, 0) * unit(ixm, n) + pm.phi(1, 1) * unit(ixm + 1, n) -
+                     t * pm.gamma(1) * fam;
+    if (has_fm && !shared) A.row(ifm) = r * unit(ifm, n) - (a * a / t) * em;
+  }
+  if (with_slave) {
+    Row pos_err = -unit(ixs, n);
+    if (with_master) pos_err += alpha * unit(delay > 0 ? id0 + delay - 1 : ixm, n);
+    Row fas = g.kps * pos_err - ksvf * unit(ixs, n);
+    if (has_fs) fas += (a / t) * es + unit(ifs, n);
+    const ZohPlant& ps = slave_plant_;
+    A.row(ixs) = ps.phi(0, 0) * unit(ixs, n) + ps.phi(0, 1) / t * unit(ixs + 1, n) +
+                 ps.gamma(0) * fas;
+    A.row(ixs + 1) = t * ps.phi(1, 0) * unit(ixs, n) + ps.phi(1, 1) * unit(ixs + 1, n) +
+                     t * ps.gamma(1) * fas;
+    if (has_fs) A.row(ifs) = r * unit(ifs, n) - (a * a / t) * es;
+  }
+  for (int j = 0; j < delay; ++j) {
+    A(id0 + j, j == 0 ? ixm : id0 + j - 1) = 1.0;
+  }
+
+  ModelBlock block;
+  block.a = std::move(A);
+  block.includes_master = with_master;
+  // Paper realisation per included side: X(k), X(k-1), X(k-2) and its held input.
+  const int paper_states = (with_master ? 4 : 0) + (with_slave ? 4 : 0) + delay;
+  block.structural_zeros = paper_states - n;
+  return block;
+}
+
+}  // namespace teleop::stability

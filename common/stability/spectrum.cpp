@@ -1,0 +1,156 @@
+#include "common/stability/spectrum.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace teleop::stability {
+
+namespace {
+
+constexpr double kEps = std::numeric_limits<double>::epsilon();
+
+// Parlett-Reinsch balancing with powers of two (exact): states in metres, newtons and
+// metres-per-sample live side by side, and balancing keeps the eigenvalues well conditioned.
+Eigen::MatrixXd balance(Eigen::MatrixXd a) {
+  const Eigen::Index n = a.rows();
+  bool converged = false;
+  for (int sweep = 0; sweep < 50 && !converged; ++sweep) {
+    converged = true;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double c = a.col(i).cwiseAbs().sum() - std::abs(a(i, i));
+      const double r = a.row(i).cwiseAbs().sum() - std::abs(a(i, i));
+      if (c == 0.0 || r == 0.0) continue;
+      double f = 1.0;
+      double cc = c;
+      double rr = r;
+      while (cc < rr / 2.0) {
+        cc *= 2.0;
+        rr /= 2.0;
+        f *= 2.0;
+      }
+      while (cc >= rr * 2.0) {
+        cc /= 2.0;
+        rr *= 2.0;
+        f /= 2.0;
+      }
+      if ((cc + rr) < 0.95 * (c + r)) {
+        converged = false;
+        a.col(i) *= f;
+        a.row(i) /= f;
+      }
+    }
+  }
+  return a;
+}
+
+Mode make_mode(std::complex<double> z, double period_s) {
+  Mode m;
+  m.z = z;
+  if (!(std::abs(z) > 1e-300)) {
+    m.s = {-std::numeric_limits<double>::infinity(), 0.0};
+    m.damping_ratio = 1.0;
+    return m;
+  }
+  m.s = std::log(z) / period_s;
+  m.damping_ratio = damping_ratio(z);
+  return m;
+}
+
+Verdict verdict_of(const std::vector<Mode>& modes) {
+  bool uncertain = false;
+  for (const Mode& m : modes) {
+    if (m.structural) continue;
+    const double margin = 1.0 - std::abs(m.z);
+    if (margin < -m.error) return Verdict::kUnstable;
+    if (margin <= m.error) uncertain = true;
+  }
+  return uncertain ? Verdict::kUncertain : Verdict::kStable;
+}
+
+void summarise(Spectrum& sp) {
+  std::stable_sort(sp.modes.begin(), sp.modes.end(), [](const Mode& x, const Mode& y) {
+    if (x.structural != y.structural) return !x.structural;
+    return std::abs(x.z) > std::abs(y.z);
+  });
+  sp.spectral_radius = 0.0;
+  sp.min_damping_ratio = 1.0;
+  for (const Mode& m : sp.modes) {
+    if (m.structural) continue;
+    sp.spectral_radius = std::max(sp.spectral_radius, std::abs(m.z));
+    sp.min_damping_ratio = std::min(sp.min_damping_ratio, m.damping_ratio);
+  }
+  sp.verdict = verdict_of(sp.modes);
+}
+
+}  // namespace
+
+double damping_ratio(std::complex<double> z) {
+  const double mag = std::abs(z);
+  if (!(mag > 1e-300)) return 1.0;  // z = 0: s = -inf, no oscillation
+  // ln z = ln|z| + i arg z; log1p keeps the digits of ln|z| for |z| near 1.
+  const double re =
+      mag < 0.5 ? std::log(mag)
+                : 0.5 * std::log1p((z.real() - 1.0) * (z.real() + 1.0) + z.imag() * z.imag());
+  const double im = std::arg(z);
+  const double norm = std::hypot(re, im);
+  if (norm == 0.0) return 0.0;  // z == 1: a marginal rigid-body mode
+  return -re / norm;
+}
+
+Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int structural_zeros,
+                          bool estimate_error) {
+  Spectrum sp;
+  const Eigen::Index n = a_in.rows();
+  if (n > 0) {
+    const Eigen::MatrixXd a = balance(a_in);
+    const double unit_error = 8.0 * static_cast<double>(n) * kEps * a.norm();
+    Eigen::EigenSolver<Eigen::MatrixXd> es(a, false);
+    Eigen::VectorXcd lambda = es.eigenvalues();
+    bool near_circle = false;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      near_circle = near_circle || std::abs(1.0 - std::abs(lambda(i))) <= kFastPathMargin;
+    }
+    std::vector<double> errors(static_cast<std::size_t>(n), kFastPathMargin);
+    if (estimate_error || near_circle) {
+      // |dz_i| <= kappa_i * |dA| with kappa_i = |y_i| |x_i| / |y_i^H x_i|; the rows of V^-1 are
+      // the left eigenvectors scaled so that y_i^H x_i = 1.
+      Eigen::EigenSolver<Eigen::MatrixXd> full(a, true);
+      lambda = full.eigenvalues();
+      const Eigen::MatrixXcd v = full.eigenvectors();
+      Eigen::FullPivLU<Eigen::MatrixXcd> lu(v);
+      const double kappa_cap = 1.0 / kEps;
+      const bool invertible = lu.isInvertible();
+      const Eigen::MatrixXcd vinv = invertible ? Eigen::MatrixXcd(lu.inverse()) : v;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        double kappa = kappa_cap;
+        if (invertible) kappa = std::min(kappa_cap, vinv.row(i).norm() * v.col(i).norm());
+        // A defective (Jordan) pair splits by sqrt(|dA|): never claim less than that.
+        errors[static_cast<std::size_t>(i)] =
+            std::max(kappa * unit_error, kappa > 1e6 ? std::sqrt(unit_error) : 0.0);
+      }
+    }
+    for (Eigen::Index i = 0; i < n; ++i) {
+      Mode m = make_mode(lambda(i), period_s);
+      m.error = errors[static_cast<std::size_t>(i)];
+      sp.modes.push_back(m);
+    }
+  }
+  for (int i = 0; i < structural_zeros; ++i) {
+    Mode m;
+    m.structural = true;
+    sp.modes.push_back(m);
+  }
+  summarise(sp);
+  return sp;
+}
+
+Spectrum merge(const std::vector<Spectrum>& parts) {
+  Spectrum sp;
+  for (const Spectrum& p : parts) sp.modes.insert(sp.modes.end(), p.modes.begin(), p.modes.end());
+  summarise(sp);
+  return sp;
+}
+
+}  // namespace teleop::stability

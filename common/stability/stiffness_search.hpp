@@ -1,0 +1,38 @@
+// Maximum stable fixture stiffness: the largest K such that every stiffness in [0, K] meets
+// the required damping ratio for every human of the model, to the configured tolerance.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "common/core/teleop_params.hpp"
+#include "common/stability/human_grid.hpp"
+
+namespace teleop::stability {
+
+enum class Side { kMaster, kSlave };
+
+struct SearchOptions {
+  double max_stiffness_N_per_m{1e9};  // above this a limit is reported as "none"
+  double growth{1.5};                 // geometric scan factor before bisection
+};
+
+struct StiffnessLimit {
+  std::optional<double> max_stable_stiffness_N_per_m{};
+  std::string reason{};                       // why there is no finite limit, or a caveat
+  std::optional<HumanSample> worst_human{};   // the human whose loop sets the limit
+  std::optional<double> passivity_limit_N_per_m{};  // Colgate-Schenkel, master wall only
+  long evaluations{0};                        // single-human spectra computed
+  int band_verifications{0};                  // whole-band sweeps
+};
+
+// Searches on the current worst human (scan then bisection), verifies the answer over the
+// whole band, and repeats with whichever human fails there until the band agrees.
+[[nodiscard]] StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
+                                                  const SearchOptions& options = {});
+
+// b > K T / 2 + |B| for the master wall (with the master's own position and velocity gains
+// counted in K and B): the conservative colocated bound the paper compares with (Fig. 14).
+[[nodiscard]] double master_passivity_limit(const TeleopParams& params);
+
+}  // namespace teleop::stability

@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# The README's first command: install dependencies, build, and run the main job.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+./scripts/build.sh build
+echo
+echo "== teleopctl analyze examples/paddles.textproto"
+./build/supervisor/teleopctl/teleopctl analyze examples/paddles.textproto
+echo
+echo "== maximum stable slave fixture stiffness against sample rate (the paper's Fig. 7)"
+./build/supervisor/teleopctl/teleopctl analyze examples/paddles.textproto \
+  --max-stiffness slave --rates 250,500,1000,2000
+echo
+echo "== the force-controlled device of Vlachos & Papadopoulos"
+./build/supervisor/teleopctl/teleopctl analyze examples/force_loop.textproto --force-loop

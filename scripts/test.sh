@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# The README's second command: build (installing dependencies if needed) and run every test.
+#   scripts/test.sh            normal build in build/
+#   scripts/test.sh --sanitize ASan+UBSan build with clang in build-asan/
+set -euo pipefail
+cd "$(dirname "$0")/.."
+./scripts/install-deps.sh
+if [ "${1:-}" = "--sanitize" ]; then
+  CC=clang CXX=clang++ ./scripts/build.sh build-asan -DTELEOP_SANITIZE=ON -DTELEOP_BUILD_BENCH=OFF
+  export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  ctest --test-dir build-asan --output-on-failure --parallel "$(nproc)"
+else
+  ./scripts/build.sh build
+  ctest --test-dir build --output-on-failure --parallel "$(nproc)"
+fi

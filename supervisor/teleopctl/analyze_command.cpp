@@ -1,0 +1,344 @@
+#include "supervisor/teleopctl/analyze_command.hpp"
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <ostream>
+
+#include "common/config/config_loader.hpp"
+#include "common/stability/analyzer.hpp"
+#include "common/stability/force_loop.hpp"
+#include "supervisor/teleopctl/json_output.hpp"
+#include "supervisor/teleopctl/svg_plot.hpp"
+
+namespace teleop::ctl {
+
+namespace {
+
+using nlohmann::json;
+using stability::Side;
+
+double parse_number(const std::string& text, const std::string& what) {
+  double v = 0.0;
+  const char* first = text.data();
+  const char* last = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(first, last, v);
+  if (ec != std::errc{} || ptr != last || !std::isfinite(v)) {
+    throw UsageError(fmt::format("{}: '{}' is not a finite number", what, text));
+  }
+  return v;
+}
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> parts;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t pos = s.find(sep, start);
+    parts.push_back(s.substr(start, pos - start));
+    if (pos == std::string::npos) break;
+    start = pos + 1;
+  }
+  return parts;
+}
+
+Sweep parse_sweep(const std::string& spec) {
+  const std::size_t eq = spec.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw UsageError(fmt::format("--sweep '{}': expected PATH=FROM:TO:STEP", spec));
+  }
+  const std::vector<std::string> range = split(spec.substr(eq + 1), ':');
+  if (range.size() != 3) {
+    throw UsageError(fmt::format("--sweep '{}': expected PATH=FROM:TO:STEP", spec));
+  }
+  Sweep s{spec.substr(0, eq), parse_number(range[0], "--sweep FROM"),
+          parse_number(range[1], "--sweep TO"), parse_number(range[2], "--sweep STEP")};
+  if (s.step <= 0.0 || s.to < s.from) {
+    throw UsageError(fmt::format("--sweep '{}': need STEP > 0 and TO >= FROM", spec));
+  }
+  if ((s.to - s.from) / s.step > 10000.0) {
+    throw UsageError(fmt::format("--sweep '{}': more than 10000 points", spec));
+  }
+  return s;
+}
+
+std::string fmt_opt(const std::optional<double>& v, const char* unit) {
+  return v ? fmt::format("{:.6g} {}", *v, unit) : std::string("none");
+}
+
+std::string human_text(const std::optional<stability::HumanSample>& h) {
+  if (!h) return "n/a (the human does not enter this loop)";
+  std::string s = fmt::format("m_h = {:.4g} kg, b_h = {:.4g} Ns/m, k_h = {:.4g} N/m",
+                              h->impedance.mass_kg, h->impedance.damping_Ns_per_m,
+                              h->impedance.stiffness_N_per_m);
+  if (h->has_force) s += fmt::format(" at grip force {:.4g} N", h->force_N);
+  return s;
+}
+
+void write_file(const std::string& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+  if (!f) throw std::runtime_error(fmt::format("cannot write '{}'", path));
+}
+
+// The loaded configuration with extra assignments applied, as engine parameters.
+TeleopParams params_with(const config::LoadedConfig& base, const std::vector<std::string>& sets) {
+  config::LoadedConfig c = base;
+  for (const std::string& s : sets) config::apply_override(c, s);
+  return config::to_teleop_params(c);
+}
+
+std::string number_text(double v) { return fmt::format("{}", v); }
+
+int run_force_loop(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out) {
+  const ForceLoopParams p = config::to_force_loop_params(cfg);
+  const stability::ForceLoopResult r = stability::analyze_force_loop(p);
+  if (o.json) {
+    out << force_loop_json(r, p).dump(2) << "\n";
+  } else {
+    out << fmt::format("force loop ({} controller, T = {:.6g} s, M = {:.4g} kg, B = {:.4g} Ns/m)\n",
+                       r.proportional_integral ? "PI" : "P", 1.0 / p.sample_rate_hz, p.mass_kg,
+                       p.damping_Ns_per_m);
+    out << fmt::format("  B_v limit, eq. 14 (any K_v):           {}\n",
+                       fmt_opt(r.bv_limit_eq14_Ns_per_m, "Ns/m"));
+    out << fmt::format("  B_v limit at the configured K_v:       {}\n",
+                       fmt_opt(r.bv_limit_Ns_per_m, "Ns/m"));
+    out << fmt::format("  K_v limit at the configured B_v{}: {}\n",
+                       r.proportional_integral ? " (R-H)" : " (eq. 15)",
+                       fmt_opt(r.kv_limit_N_per_m, "N/m"));
+    if (!r.limit_reason.empty()) out << "  note: " << r.limit_reason << "\n";
+    out << fmt::format("  environment K_v = {:.6g} N/m, B_v = {:.6g} Ns/m: {}\n",
+                       p.environment_stiffness_N_per_m, p.environment_damping_Ns_per_m,
+                       stability::to_string(r.verdict));
+    out << "  closed-loop roots (s):";
+    for (const auto& root : r.roots) out << fmt::format(" {:.6g}{:+.6g}i", root.real(), root.imag());
+    out << "\n";
+  }
+  if (r.verdict == stability::Verdict::kUnstable) return kExitUnstable;
+  if (r.verdict == stability::Verdict::kUncertain) return kExitUncertain;
+  return kExitStable;
+}
+
+int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out) {
+  const Side side = *o.max_stiffness_side;
+  const char* side_name = side == Side::kMaster ? "master" : "slave";
+  const TeleopParams base = config::to_teleop_params(cfg);
+  std::vector<double> rates = o.rates_hz;
+  if (rates.empty()) rates.push_back(base.sample_rate_hz);
+  std::vector<std::optional<double>> sweep_values{std::nullopt};
+  if (o.sweep) {
+    sweep_values.clear();
+    for (const double v : o.sweep->values()) sweep_values.emplace_back(v);
+  }
+
+  json limits = json::array();
+  std::vector<Series> series;
+  for (const auto& sv : sweep_values) {
+    Series line;
+    line.label = sv ? fmt::format("{} = {:g}", o.sweep->path, *sv) : std::string(side_name);
+    for (const double rate : rates) {
+      std::vector<std::string> sets{"sample_rate_hz=" + number_text(rate)};
+      if (sv) sets.push_back(o.sweep->path + "=" + number_text(*sv));
+      const TeleopParams p = params_with(cfg, sets);
+      const stability::StiffnessLimit l = stability::max_stable_stiffness(p, side);
+      json j = limit_json(l, side, rate);
+      if (sv) j[o.sweep->path] = *sv;
+      limits.push_back(j);
+      const double x = (o.sweep && rates.size() == 1) ? *sv : rate;
+      line.points.emplace_back(x, l.max_stable_stiffness_N_per_m.value_or(std::nan("")));
+    }
+    series.push_back(std::move(line));
+  }
+  if (o.sweep && rates.size() == 1) {
+    // One rate, one swept value: a single curve against the swept parameter.
+    Series merged{fmt::format("{} fixture limit", side_name), {}};
+    for (const Series& s : series) merged.points.insert(merged.points.end(), s.points.begin(),
+                                                        s.points.end());
+    series = {merged};
+  }
+
+  if (o.json) {
+    out << json{{"side", side_name},
+                {"swept", o.sweep ? json(o.sweep->path) : json(nullptr)},
+                {"required_damping_ratio", base.analysis.required_damping_ratio},
+                {"stiffness_tolerance_N_per_m", base.analysis.stiffness_tolerance_N_per_m},
+                {"limits", limits}}
+               .dump(2)
+        << "\n";
+  } else {
+    out << fmt::format("maximum stable {} fixture stiffness (required damping ratio {:g}, "
+                       "tolerance {:g} N/m)\n",
+                       side_name, base.analysis.required_damping_ratio,
+                       base.analysis.stiffness_tolerance_N_per_m);
+    for (const json& j : limits) {
+      std::string row = fmt::format("  {:>8g} Hz", j["sample_rate_hz"].get<double>());
+      if (o.sweep) row += fmt::format("  {} = {:<8g}", o.sweep->path, j[o.sweep->path].get<double>());
+      const json& k = j["max_stable_stiffness_N_per_m"];
+      row += k.is_null() ? std::string("  none") : fmt::format("  {:>12.6g} N/m", k.get<double>());
+      if (j.contains("passivity_limit_N_per_m") && !j["passivity_limit_N_per_m"].is_null()) {
+        row += fmt::format("  (passivity bound {:.6g} N/m)",
+                           j["passivity_limit_N_per_m"].get<double>());
+      }
+      if (j.contains("reason")) row += "  — " + j["reason"].get<std::string>();
+      out << row << "\n";
+    }
+  }
+  if (o.plot_path) {
+    Chart chart;
+    chart.title = fmt::format("Maximum stable {} fixture stiffness", side_name);
+    chart.x_label = (o.sweep && rates.size() == 1) ? o.sweep->path : "sample rate (Hz)";
+    chart.y_label = "stiffness (N/m)";
+    const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+    for (std::size_t i = 0; i < series.size(); ++i) series[i].colour = colours[i % 6];
+    chart.series = series;
+    write_file(*o.plot_path, render_svg(chart));
+  }
+  return kExitStable;
+}
+
+int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out) {
+  const TeleopParams p = config::to_teleop_params(cfg);
+  const stability::AnalysisResult r = stability::analyze(p);
+  if (o.json) {
+    out << analysis_json(r, p).dump(2) << "\n";
+  } else {
+    out << fmt::format("{}: {}\n", cfg.source_name, stability::to_string(r.verdict));
+    out << fmt::format("  loop: {} at {:g} Hz, round trip {} samples, fixtures master {:g} N/m, "
+                       "slave {:g} N/m\n",
+                       stability::to_string(r.structure), p.sample_rate_hz,
+                       p.round_trip_delay_samples, p.master_fixture.stiffness_N_per_m,
+                       p.slave_fixture.stiffness_N_per_m);
+    out << fmt::format("  spectral radius {:.6f}, minimum damping ratio {:.4f} (required {:g})\n",
+                       r.spectral_radius, r.min_damping_ratio, p.analysis.required_damping_ratio);
+    out << fmt::format("  worst human ({} evaluated): {}\n", r.humans_evaluated,
+                       human_text(r.worst_human));
+    out << "  eigenvalues of the worst case:\n";
+    out << "            z                          |z|         s (rad/s)                    zeta\n";
+    for (const stability::Mode& m : r.spectrum.modes) {
+      if (m.structural) {
+        out << "    0 (structural: held input or unused controller memory)\n";
+        continue;
+      }
+      out << fmt::format("    {:+.6f} {:+.6f}i   {:.6f}   {:+11.2f} {:+11.2f}i   {:+.4f}\n",
+                         m.z.real(), m.z.imag(), std::abs(m.z), m.s.real(), m.s.imag(),
+                         m.damping_ratio);
+    }
+  }
+  if (o.plot_path) {
+    // The eigenvalue cloud over every human (the paper's Fig. 6).
+    const stability::LoopEvaluator ev(p);
+    Series cloud{"eigenvalues over the human band", {}, "#1f77b4", false};
+    for (std::size_t i = 0; i < ev.human_count(); ++i) {
+      const stability::Spectrum s = ev.spectrum(i, p.master_fixture.stiffness_N_per_m,
+                                                p.slave_fixture.stiffness_N_per_m, false);
+      for (const stability::Mode& m : s.modes) {
+        if (!m.structural) cloud.points.emplace_back(m.z.real(), m.z.imag());
+      }
+    }
+    Chart chart;
+    chart.title = fmt::format("z-plane eigenvalues, {:g} Hz, slave fixture {:g} N/m",
+                              p.sample_rate_hz, p.slave_fixture.stiffness_N_per_m);
+    chart.x_label = "Re z";
+    chart.y_label = "Im z";
+    chart.unit_circle = true;
+    chart.series = {cloud};
+    write_file(*o.plot_path, render_svg(chart));
+  }
+  switch (r.verdict) {
+    case stability::Verdict::kStable:
+      return kExitStable;
+    case stability::Verdict::kUnstable:
+      return kExitUnstable;
+    case stability::Verdict::kUncertain:
+      return kExitUncertain;
+  }
+  return kExitUncertain;
+}
+
+}  // namespace
+
+std::vector<double> Sweep::values() const {
+  std::vector<double> v;
+  const auto count = static_cast<long>(std::floor((to - from) / step + 1e-9));
+  for (long i = 0; i <= count; ++i) v.push_back(from + static_cast<double>(i) * step);
+  return v;
+}
+
+std::string analyze_usage() {
+  return "usage: teleopctl analyze CONFIG [--set PATH=VALUE]... [--json] [--plot FILE.svg]\n"
+         "       teleopctl analyze CONFIG --max-stiffness slave|master [--rates R1,R2,...]\n"
+         "                         [--sweep PATH=FROM:TO:STEP] [--json] [--plot FILE.svg]\n"
+         "       teleopctl analyze CONFIG --force-loop [--json]\n";
+}
+
+AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
+  AnalyzeOptions o;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    const std::string& a = args[i];
+    auto value = [&](const char* flag) -> const std::string& {
+      if (i + 1 >= args.size()) throw UsageError(fmt::format("{} needs a value", flag));
+      return args[++i];
+    };
+    if (a == "--json") {
+      o.json = true;
+    } else if (a == "--set") {
+      o.overrides.push_back(value("--set"));
+    } else if (a.rfind("--set=", 0) == 0) {
+      o.overrides.push_back(a.substr(6));
+    } else if (a == "--max-stiffness") {
+      const std::string& side = value("--max-stiffness");
+      if (side == "slave") {
+        o.max_stiffness_side = Side::kSlave;
+      } else if (side == "master") {
+        o.max_stiffness_side = Side::kMaster;
+      } else {
+        throw UsageError(fmt::format("--max-stiffness takes 'slave' or 'master', not '{}'", side));
+      }
+    } else if (a == "--rates") {
+      for (const std::string& r : split(value("--rates"), ',')) {
+        const double hz = parse_number(r, "--rates");
+        if (hz <= 0.0) throw UsageError(fmt::format("--rates: {} Hz is not positive", r));
+        o.rates_hz.push_back(hz);
+      }
+    } else if (a == "--sweep") {
+      o.sweep = parse_sweep(value("--sweep"));
+    } else if (a == "--force-loop") {
+      o.force_loop = true;
+    } else if (a == "--plot") {
+      o.plot_path = value("--plot");
+    } else if (!a.empty() && a[0] == '-') {
+      throw UsageError(fmt::format("unknown option '{}'", a));
+    } else if (o.config_path.empty()) {
+      o.config_path = a;
+    } else {
+      throw UsageError(fmt::format("unexpected argument '{}'", a));
+    }
+  }
+  if (o.config_path.empty()) throw UsageError("missing CONFIG");
+  if (o.force_loop && o.max_stiffness_side) {
+    throw UsageError("--force-loop and --max-stiffness are separate analyses: give one");
+  }
+  if (!o.max_stiffness_side && (!o.rates_hz.empty() || o.sweep)) {
+    throw UsageError("--rates and --sweep go with --max-stiffness");
+  }
+  return o;
+}
+
+int run_analyze(const AnalyzeOptions& o, std::ostream& out, std::ostream& err) {
+  try {
+    const config::LoadedConfig cfg = config::load_config_file(o.config_path, o.overrides);
+    if (o.force_loop) return run_force_loop(cfg, o, out);
+    if (o.max_stiffness_side) return run_limits(cfg, o, out);
+    return run_single(cfg, o, out);
+  } catch (const config::ConfigError& e) {
+    err << "teleopctl analyze: invalid configuration:\n" << e.what() << "\n";
+    return kExitError;
+  } catch (const std::exception& e) {
+    err << "teleopctl analyze: " << e.what() << "\n";
+    return kExitError;
+  }
+}
+
+}  // namespace teleop::ctl

@@ -1,0 +1,134 @@
+// The real teleopctl binary on the shipped examples and on broken input: what a user sees.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace {
+
+struct CliResult {
+  int exit_code{-1};
+  std::string out{};
+};
+
+CliResult run(const std::string& args) {
+  const std::string cmd = std::string(TELEOPCTL_PATH) + " " + args + " 2>&1";
+  CliResult r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+std::string example(const char* name) { return std::string(TELEOP_SOURCE_DIR) + "/examples/" + name; }
+
+std::string temp_config(const std::string& name, const std::string& text) {
+  const std::string path = ::testing::TempDir() + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+TEST(Teleopctl, ShippedPaddlesExampleIsStable) {
+  const CliResult r = run("analyze " + example("paddles.textproto") + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["verdict"], "stable");
+  EXPECT_EQ(j["stable"], true);
+  EXPECT_LT(j["spectral_radius"].get<double>(), 1.0);
+  EXPECT_GT(j["min_damping_ratio"].get<double>(), 0.0);
+  ASSERT_TRUE(j["worst_human"].is_object());
+  EXPECT_TRUE(j["worst_human"]["force_N"].is_number());
+  for (const auto& e : j["eigenvalues"]) {
+    const double abs_z = std::hypot(e["z"][0].get<double>(), e["z"][1].get<double>());
+    EXPECT_LT(abs_z, 1.0);
+    EXPECT_EQ(e["s"].is_null(), e["structural"].get<bool>());
+  }
+}
+
+TEST(Teleopctl, SlaveLimitTableOverRates) {
+  const CliResult r = run("analyze " + example("paddles.textproto") +
+                    " --max-stiffness slave --rates 250,500,1000,2000 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["limits"].size(), 4u);
+  double previous = 0.0;
+  for (const auto& l : j["limits"]) {
+    ASSERT_TRUE(l["max_stable_stiffness_N_per_m"].is_number()) << l.dump();
+    const double k = l["max_stable_stiffness_N_per_m"].get<double>();
+    EXPECT_GT(k, previous);  // Fig. 7: the limit rises with the sample rate
+    previous = k;
+  }
+  // The shipped 1500 N/m at 500 Hz must be below the 500 Hz limit: "stable as shipped".
+  EXPECT_GT(j["limits"][1]["max_stable_stiffness_N_per_m"].get<double>(), 1500.0);
+}
+
+TEST(Teleopctl, SweepOfAGainAddsTheSweptValueToEachRow) {
+  const CliResult r = run("analyze " + example("paddles.textproto") +
+                    " --max-stiffness master --sweep gains.kdm=1:3:1 --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["limits"].size(), 3u);
+  EXPECT_EQ(j["limits"][2]["gains.kdm"].get<double>(), 3.0);
+  EXPECT_TRUE(j["limits"][0].contains("passivity_limit_N_per_m"));
+}
+
+TEST(Teleopctl, ForceLoopOfThePaperGives1105NPerM) {
+  // Vlachos-Papadopoulos: M = 0.25 kg, B = 5 Ns/m, T = 1 ms, K_p = 5, B_v = 0.1 -> 1105 N/m.
+  const CliResult r = run("analyze " + example("force_loop.textproto") + " --force-loop --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["kv_limit_N_per_m"].get<double>(), 1105.0, 1.0);
+  EXPECT_EQ(j["stable"], true);
+}
+
+TEST(Teleopctl, SetOverrideMakesTheExampleUnstable) {
+  const CliResult r = run("analyze " + example("paddles.textproto") +
+                    " --set slave.fixture.stiffness_N_per_m=20000 --json");
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["verdict"], "unstable");
+}
+
+TEST(Teleopctl, BadConfigNamesFileLineAndField) {
+  const std::string path =
+      temp_config("bad.textproto", "sample_rate_hz: 500\ngains { kpm: 600 kpx: 1 }\n");
+  const CliResult r = run("analyze " + path);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("bad.textproto:2:"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("kpx"), std::string::npos) << r.out;
+}
+
+TEST(Teleopctl, NanIsRejected) {
+  const std::string path = temp_config(
+      "nan.textproto",
+      "sample_rate_hz: 500\nmaster { device { mass_kg: nan damping_Ns_per_m: 0.41 } }\n"
+      "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } }\ngains { kpm: 600 }\n");
+  const CliResult r = run("analyze " + path);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("nan.textproto:2:"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("master.device.mass_kg"), std::string::npos) << r.out;
+}
+
+TEST(Teleopctl, PlotsAreWritten) {
+  const std::string cloud = ::testing::TempDir() + "cloud.svg";
+  ASSERT_EQ(run("analyze " + example("paddles.textproto") + " --plot " + cloud).exit_code, 0);
+  std::ifstream f(cloud);
+  const std::string svg((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  EXPECT_NE(svg.find("<svg"), std::string::npos);
+  EXPECT_GT(std::count(svg.begin(), svg.end(), '\n'), 100);  // one marker per eigenvalue
+}
+
+TEST(Teleopctl, UsageErrorsExitWith2) {
+  EXPECT_EQ(run("analyze").exit_code, 2);
+  EXPECT_EQ(run("analyze x --max-stiffness sideways").exit_code, 2);
+  EXPECT_EQ(run("frobnicate").exit_code, 2);
+}
+
+}  // namespace
