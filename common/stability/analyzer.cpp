@@ -75,11 +75,17 @@ AnalysisResult analyze(const TeleopParams& params) {
   const LoopEvaluator ev(params);
   const double kmvf = params.master_fixture.stiffness_N_per_m;
   const double ksvf = params.slave_fixture.stiffness_N_per_m;
-  const BandResult band = ev.sweep(kmvf, ksvf);
   AnalysisResult out;
   out.structure = ev.model().structure();
   out.humans_evaluated = ev.model().human_matters() ? ev.human_count() : 0;
-  out.spectrum = ev.spectrum(band.worst_index, kmvf, ksvf, true);
+  BandResult band;
+  if (ev.human_count() == 1) {
+    out.spectrum = ev.spectrum(0, kmvf, ksvf, true);
+    band = {out.spectrum.verdict, out.spectrum.min_damping_ratio, out.spectrum.spectral_radius, 0};
+  } else {
+    band = ev.sweep(kmvf, ksvf);
+    out.spectrum = ev.spectrum(band.worst_index, kmvf, ksvf, true);
+  }
   out.verdict = band.verdict;
   // The detailed spectrum carries error bounds; it may only make the verdict less certain.
   if (out.verdict == Verdict::kStable && out.spectrum.verdict != Verdict::kStable) {

@@ -85,25 +85,20 @@ ModelBlock DiscreteModel::build_block(bool with_master, bool with_slave,
   const int id0 = n;  // delayed master positions x_m(k-1) ... x_m(k-d)
   n += delay;
 
-  auto unit = [&](int i, int size) {
-    Row r = Row::Zero(size);
-    r(i) = 1.0;
-    return r;
-  };
   // The velocity terms of each controller are filtered together: one filter (or one
   // backward-difference memory) state per controller, so the non-trivial modes number 6 + d.
   auto velocity_signals = [&](int size) {
     Row em = Row::Zero(size);
     Row es = Row::Zero(size);
     if (with_master) {
-      em += (beta * g.kdm + g.kvm) * unit(ixm, size);
-      if (with_slave) em -= beta * g.kdm / alpha * unit(ixs, size);
+      em(ixm) += beta * g.kdm + g.kvm;
+      if (with_slave) em(ixs) -= beta * g.kdm / alpha;
     }
     if (with_slave) {
-      es -= (g.kds + g.kvs) * unit(ixs, size);
+      es(ixs) -= g.kds + g.kvs;
       if (with_master) {
         const int src = delay > 0 ? id0 + delay - 1 : ixm;
-        es += g.kds * alpha * unit(src, size);
+        es(src) += g.kds * alpha;
       }
     }
     return std::pair{em, es};
@@ -136,30 +131,44 @@ ModelBlock DiscreteModel::build_block(bool with_master, bool with_slave,
   const double r = filter_r_;
   Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
 
+  // Each plant row is phi * own state + gamma * (actuator force), the force a row vector over
+  // the state. Written coefficient by coefficient: this runs for every human of a band.
+  auto plant_rows = [&](int ix, const ZohPlant& pl, const Row& force, double sign) {
+    A(ix, ix) = pl.phi(0, 0);
+    A(ix, ix + 1) = pl.phi(0, 1) / t;
+    A(ix + 1, ix) = t * pl.phi(1, 0);
+    A(ix + 1, ix + 1) = pl.phi(1, 1);
+    A.row(ix) += (sign * pl.gamma(0)) * force;
+    A.row(ix + 1) += (sign * t * pl.gamma(1)) * force;
+  };
+  Row force = Row::Zero(n);
   if (with_master) {
-    Row pos_err = unit(ixm, n);
-    if (with_slave) pos_err -= unit(ixs, n) / alpha;
-    Row fam = beta * g.kpm * pos_err + kmvf * unit(ixm, n);
-    if (has_fm) fam += (a / t) * em + fm_scale * unit(ifm, n);
-    const ZohPlant& pm = master_plant;
+    force(ixm) = beta * g.kpm + kmvf;
+    if (with_slave) force(ixs) = -beta * g.kpm / alpha;
+    if (has_fm) {
+      force += (a / t) * em;
+      force(ifm) += fm_scale;
+    }
     // The master is pushed by -F_am (F_h - F_am = Z_m X_m); F_h* is constant here.
-    A.row(ixm) = pm.phi(0, 0) * unit(ixm, n) + pm.phi(0, 1) / t * unit(ixm + 1, n) -
-                 pm.gamma(0) * fam;
-    A.row(ixm + 1) = t * pm.phi(1, 0) * unit(ixm, n) + pm.phi(1, 1) * unit(ixm + 1, n) -
-                     t * pm.gamma(1) * fam;
-    if (has_fm && !shared) A.row(ifm) = r * unit(ifm, n) - (a * a / t) * em;
+    plant_rows(ixm, master_plant, force, -1.0);
+    if (has_fm && !shared) {
+      A.row(ifm) = -(a * a / t) * em;
+      A(ifm, ifm) += r;
+    }
   }
   if (with_slave) {
-    Row pos_err = -unit(ixs, n);
-    if (with_master) pos_err += alpha * unit(delay > 0 ? id0 + delay - 1 : ixm, n);
-    Row fas = g.kps * pos_err - ksvf * unit(ixs, n);
-    if (has_fs) fas += (a / t) * es + unit(ifs, n);
-    const ZohPlant& ps = slave_plant_;
-    A.row(ixs) = ps.phi(0, 0) * unit(ixs, n) + ps.phi(0, 1) / t * unit(ixs + 1, n) +
-                 ps.gamma(0) * fas;
-    A.row(ixs + 1) = t * ps.phi(1, 0) * unit(ixs, n) + ps.phi(1, 1) * unit(ixs + 1, n) +
-                     t * ps.gamma(1) * fas;
-    if (has_fs) A.row(ifs) = r * unit(ifs, n) - (a * a / t) * es;
+    force.setZero();
+    force(ixs) = -(g.kps + ksvf);
+    if (with_master) force(delay > 0 ? id0 + delay - 1 : ixm) += alpha * g.kps;
+    if (has_fs) {
+      force += (a / t) * es;
+      force(ifs) += 1.0;
+    }
+    plant_rows(ixs, slave_plant_, force, 1.0);
+    if (has_fs) {
+      A.row(ifs) = -(a * a / t) * es;
+      A(ifs, ifs) += r;
+    }
   }
   for (int j = 0; j < delay; ++j) {
     A(id0 + j, j == 0 ? ixm : id0 + j - 1) = 1.0;

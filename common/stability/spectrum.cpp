@@ -106,7 +106,9 @@ Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int stru
   if (n > 0) {
     const Eigen::MatrixXd a = balance(a_in);
     const double unit_error = 8.0 * static_cast<double>(n) * kEps * a.norm();
-    Eigen::EigenSolver<Eigen::MatrixXd> es(a, false);
+    // Reused between calls so a band sweep does not allocate the solver's workspace each time.
+    thread_local Eigen::EigenSolver<Eigen::MatrixXd> es;
+    es.compute(a, estimate_error);
     Eigen::VectorXcd lambda = es.eigenvalues();
     bool near_circle = false;
     for (Eigen::Index i = 0; i < n; ++i) {
@@ -116,9 +118,11 @@ Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int stru
     if (estimate_error || near_circle) {
       // |dz_i| <= kappa_i * |dA| with kappa_i = |y_i| |x_i| / |y_i^H x_i|; the rows of V^-1 are
       // the left eigenvectors scaled so that y_i^H x_i = 1.
-      Eigen::EigenSolver<Eigen::MatrixXd> full(a, true);
-      lambda = full.eigenvalues();
-      const Eigen::MatrixXcd v = full.eigenvectors();
+      if (!estimate_error) {
+        es.compute(a, true);
+        lambda = es.eigenvalues();
+      }
+      const Eigen::MatrixXcd v = es.eigenvectors();
       Eigen::FullPivLU<Eigen::MatrixXcd> lu(v);
       const double kappa_cap = 1.0 / kEps;
       const bool invertible = lu.isInvertible();

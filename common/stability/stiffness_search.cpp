@@ -28,18 +28,23 @@ struct Searcher {
   BandResult band(double k) const { return ev.sweep(kmvf(k), ksvf(k)); }
 };
 
-std::string describe_failure(const BandResult& r, double required) {
+std::string describe_failure(const BandResult& r, double required, Side side, double other) {
+  const char* name = side == Side::kMaster ? "master" : "slave";
+  const std::string with_other =
+      other == 0.0 ? std::string("no fixture at all")
+                   : fmt::format("no {} fixture (the {} fixture at {:g} N/m as configured)", name,
+                                 side == Side::kMaster ? "slave" : "master", other);
   if (r.verdict == Verdict::kUnstable) {
-    return fmt::format("unstable with no fixture at all (minimum damping ratio {:.4g})",
+    return fmt::format("unstable with {} (minimum damping ratio {:.4g})", with_other,
                        r.min_damping_ratio);
   }
   if (r.verdict == Verdict::kUncertain) {
-    return "marginal with no fixture: an eigenvalue lies on the unit circle within the "
-           "numerical error";
+    return fmt::format("marginal with {}: an eigenvalue lies on the unit circle within the "
+                       "numerical error",
+                       with_other);
   }
-  return fmt::format(
-      "with no fixture the minimum damping ratio {:.4g} is already below the required {:.4g}",
-      r.min_damping_ratio, required);
+  return fmt::format("with {} the minimum damping ratio {:.4g} is already below the required {:.4g}",
+                     with_other, r.min_damping_ratio, required);
 }
 
 }  // namespace
@@ -76,7 +81,7 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
       out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
       lo_band = tiny;
     } else {
-      out.reason = describe_failure(lo_band, required);
+      out.reason = describe_failure(lo_band, required, side, other);
       if (ev.human_matters()) out.worst_human = ev.human(lo_band.worst_index);
       out.evaluations = s.evaluations;
       return out;

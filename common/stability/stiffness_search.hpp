@@ -14,7 +14,8 @@ enum class Side { kMaster, kSlave };
 
 struct SearchOptions {
   double max_stiffness_N_per_m{1e9};  // above this a limit is reported as "none"
-  double growth{1.5};                 // geometric scan factor before bisection
+  double growth{1.2};  // geometric scan factor before bisection: fine enough not to step
+                       // over the dips of a non-monotone damping ratio
 };
 
 struct StiffnessLimit {
