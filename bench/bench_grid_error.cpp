@@ -18,13 +18,15 @@ namespace {
 using namespace teleop;
 using namespace teleop::stability;
 
-TeleopParams paddles(double rate_hz) {
+// The shipped example (Figs. 7/11 gains, 200 Hz filter) and the Fig. 6 gains (unfiltered).
+TeleopParams paddles(double rate_hz, bool fig6) {
   TeleopParams p;
   p.sample_rate_hz = rate_hz;
   p.master_device = {0.040, 0.41};
   p.slave_device = {0.036, 0.49};
-  p.gains = {600.0, 600.0, 2.0, 2.0, 0.0, 0.0, 0.0};
-  p.velocity_cutoff_hz = 200.0;
+  p.gains = fig6 ? Gains{800.0, 800.0, 6.0, 6.0, 0.0, 0.0, 0.0}
+                 : Gains{600.0, 600.0, 2.0, 2.0, 0.0, 0.0, 0.0};
+  p.velocity_cutoff_hz = fig6 ? 0.0 : 200.0;
   p.human.kind = HumanKind::kBand;
   p.human.band = default_human_band();
   p.analysis.stiffness_tolerance_N_per_m = 0.01;
@@ -50,7 +52,7 @@ int main(int argc, char** argv) {
   std::vector<double> rates{500.0, 1000.0};
   if (argc == 3 && std::strcmp(argv[1], "--rates") == 0) {
     rates.clear();
-    std::string s = argv[2];
+    const std::string s = argv[2];
     std::size_t pos = 0;
     while (pos <= s.size()) {
       const std::size_t comma = s.find(',', pos);
@@ -59,27 +61,33 @@ int main(int argc, char** argv) {
       pos = comma + 1;
     }
   }
-  fmt::print("| rate (Hz) | side | points/axis | humans | search (ms) | K_max (N/m) | error vs fine grid |\n");
-  fmt::print("|---|---|---|---|---|---|---|\n");
-  for (const double rate : rates) {
-    for (const Side side : {Side::kSlave, Side::kMaster}) {
-      TeleopParams fine = paddles(rate);
-      fine.human.band.force_levels_N.clear();
-      for (double f = 2.0; f <= 20.0 + 1e-9; f += 1.0) fine.human.band.force_levels_N.push_back(f);
-      fine.human.band.points_per_axis = 12;
-      const Timed ref = timed_limit(fine, side);
-      const char* side_name = side == Side::kSlave ? "slave" : "master";
-      for (const int n : {2, 3, 4, 5, 6, 8}) {
-        TeleopParams p = paddles(rate);
-        p.human.band.points_per_axis = n;
-        const Timed t = timed_limit(p, side);
-        const std::size_t humans = p.human.band.force_levels_N.size() *
-                                   static_cast<std::size_t>(n * n * n);
-        fmt::print("| {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:+.3f} % |\n", rate, side_name, n,
-                   humans, t.ms, t.limit, 100.0 * (t.limit - ref.limit) / ref.limit);
+  fmt::print(
+      "| gains | rate (Hz) | side | points/axis | humans | search (ms) | K_max (N/m) | "
+      "error vs fine grid |\n");
+  fmt::print("|---|---|---|---|---|---|---|---|\n");
+  for (const bool fig6 : {false, true}) {
+    const char* gains = fig6 ? "Fig. 6: 800/6, no filter" : "example: 600/2, 200 Hz";
+    for (const double rate : rates) {
+      for (const Side side : {Side::kSlave, Side::kMaster}) {
+        TeleopParams fine = paddles(rate, fig6);
+        fine.human.band.force_levels_N.clear();
+        for (int f = 2; f <= 20; ++f) fine.human.band.force_levels_N.push_back(f);
+        fine.human.band.points_per_axis = 12;
+        const Timed ref = timed_limit(fine, side);
+        const char* side_name = side == Side::kSlave ? "slave" : "master";
+        for (const int n : {2, 3, 4, 6}) {
+          TeleopParams p = paddles(rate, fig6);
+          p.human.band.points_per_axis = n;
+          const Timed t = timed_limit(p, side);
+          const std::size_t humans =
+              p.human.band.force_levels_N.size() * static_cast<std::size_t>(n * n * n);
+          fmt::print("| {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:+.3f} % |\n", gains, rate,
+                     side_name, n, humans, t.ms, t.limit,
+                     100.0 * (t.limit - ref.limit) / ref.limit);
+        }
+        fmt::print("| {} | {:g} | {} | 12 (19 levels) | {} | {:.1f} | {:.2f} | reference |\n",
+                   gains, rate, side_name, 19 * 12 * 12 * 12, ref.ms, ref.limit);
       }
-      fmt::print("| {:g} | {} | fine: 19 levels x 12 | {} | {:.1f} | {:.2f} | reference |\n", rate,
-                 side_name, 19 * 12 * 12 * 12, ref.ms, ref.limit);
     }
   }
   return 0;

@@ -33,8 +33,7 @@ class LoopEvaluator {
 
   [[nodiscard]] Spectrum spectrum(std::size_t human, double master_fixture_N_per_m,
                                   double slave_fixture_N_per_m, bool estimate_error) const;
-  [[nodiscard]] BandResult sweep(double master_fixture_N_per_m,
-                                 double slave_fixture_N_per_m) const;
+  [[nodiscard]] BandResult sweep(double master_fixture_N_per_m, double slave_fixture_N_per_m) const;
 
  private:
   DiscreteModel model_;

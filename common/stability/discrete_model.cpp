@@ -114,8 +114,7 @@ ModelBlock DiscreteModel::build_block(bool with_master, bool with_slave,
   bool shared = false;
   if (has_fm && has_fs && filter_r_ == 0.0) {
     shared_ratio = em0.dot(es0) / es0.squaredNorm();
-    shared = (em0 - shared_ratio * es0).cwiseAbs().maxCoeff() <=
-             1e-14 * em0.cwiseAbs().maxCoeff();
+    shared = (em0 - shared_ratio * es0).cwiseAbs().maxCoeff() <= 1e-14 * em0.cwiseAbs().maxCoeff();
   }
   n += (has_fm && !shared ? 1 : 0) + (has_fs ? 1 : 0);
   Row em = Row::Zero(n);

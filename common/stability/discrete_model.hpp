@@ -14,9 +14,9 @@ namespace teleop::stability {
 
 // Which parts of the loop interact, decided from the gains (DESIGN §2 "Decoupled cases").
 enum class Structure {
-  kBilateral,     // master and slave feed back on each other: one block, the delay enters
-  kDecoupled,     // one side ignores the other: master block (with its human) and slave block
-  kSlaveOnly,     // master unactuated: the slave alone, no human needed
+  kBilateral,  // master and slave feed back on each other: one block, the delay enters
+  kDecoupled,  // one side ignores the other: master block (with its human) and slave block
+  kSlaveOnly,  // master unactuated: the slave alone, no human needed
 };
 
 [[nodiscard]] const char* to_string(Structure s);

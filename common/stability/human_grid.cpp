@@ -30,10 +30,11 @@ std::vector<HumanSample> human_samples(const HumanModel& model) {
         for (int im = 0; im < n; ++im) {
           for (int ib = 0; ib < n; ++ib) {
             for (int ik = 0; ik < n; ++ik) {
-              out.push_back(HumanSample{true, f,
-                                        {grid_value(b.mass_kg, f, im, n),
-                                         grid_value(b.damping_Ns_per_m, f, ib, n),
-                                         grid_value(b.stiffness_N_per_m, f, ik, n)}});
+              out.push_back(HumanSample{
+                  true,
+                  f,
+                  {grid_value(b.mass_kg, f, im, n), grid_value(b.damping_Ns_per_m, f, ib, n),
+                   grid_value(b.stiffness_N_per_m, f, ik, n)}});
             }
           }
         }

@@ -12,14 +12,14 @@ namespace teleop::stability {
 
 struct Mode {
   std::complex<double> z{};
-  bool structural{false};      // identically zero by the model's structure; s and zeta undefined
-  std::complex<double> s{};    // ln(z)/T
-  double damping_ratio{1.0};   // -Re(s)/|s|
-  double error{0.0};           // bound on |error of z| used for the verdict
+  bool structural{false};     // identically zero by the model's structure; s and zeta undefined
+  std::complex<double> s{};   // ln(z)/T
+  double damping_ratio{1.0};  // -Re(s)/|s|
+  double error{0.0};          // bound on |error of z| used for the verdict
 };
 
 struct Spectrum {
-  std::vector<Mode> modes{};   // non-structural modes first, by decreasing |z|
+  std::vector<Mode> modes{};  // non-structural modes first, by decreasing |z|
   double spectral_radius{0.0};
   double min_damping_ratio{1.0};
   Verdict verdict{Verdict::kStable};

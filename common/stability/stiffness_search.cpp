@@ -1,8 +1,9 @@
 #include "common/stability/stiffness_search.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
-#include <fmt/format.h>
 
 #include "common/stability/analyzer.hpp"
 
@@ -39,12 +40,14 @@ std::string describe_failure(const BandResult& r, double required, Side side, do
                        r.min_damping_ratio);
   }
   if (r.verdict == Verdict::kUncertain) {
-    return fmt::format("marginal with {}: an eigenvalue lies on the unit circle within the "
-                       "numerical error",
-                       with_other);
+    return fmt::format(
+        "marginal with {}: an eigenvalue lies on the unit circle within the "
+        "numerical error",
+        with_other);
   }
-  return fmt::format("with {} the minimum damping ratio {:.4g} is already below the required {:.4g}",
-                     with_other, r.min_damping_ratio, required);
+  return fmt::format(
+      "with {} the minimum damping ratio {:.4g} is already below the required {:.4g}", with_other,
+      r.min_damping_ratio, required);
 }
 
 }  // namespace

@@ -20,11 +20,11 @@ struct SearchOptions {
 
 struct StiffnessLimit {
   std::optional<double> max_stable_stiffness_N_per_m{};
-  std::string reason{};                       // why there is no finite limit, or a caveat
-  std::optional<HumanSample> worst_human{};   // the human whose loop sets the limit
+  std::string reason{};                             // why there is no finite limit, or a caveat
+  std::optional<HumanSample> worst_human{};         // the human whose loop sets the limit
   std::optional<double> passivity_limit_N_per_m{};  // Colgate-Schenkel, master wall only
-  long evaluations{0};                        // single-human spectra computed
-  int band_verifications{0};                  // whole-band sweeps
+  long evaluations{0};                              // single-human spectra computed
+  int band_verifications{0};                        // whole-band sweeps
 };
 
 // Searches on the current worst human (scan then bisection), verifies the answer over the

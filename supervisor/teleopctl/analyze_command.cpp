@@ -70,9 +70,9 @@ std::string fmt_opt(const std::optional<double>& v, const char* unit) {
 
 std::string human_text(const std::optional<stability::HumanSample>& h) {
   if (!h) return "n/a (the human does not enter this loop)";
-  std::string s = fmt::format("m_h = {:.4g} kg, b_h = {:.4g} Ns/m, k_h = {:.4g} N/m",
-                              h->impedance.mass_kg, h->impedance.damping_Ns_per_m,
-                              h->impedance.stiffness_N_per_m);
+  std::string s =
+      fmt::format("m_h = {:.4g} kg, b_h = {:.4g} Ns/m, k_h = {:.4g} N/m", h->impedance.mass_kg,
+                  h->impedance.damping_Ns_per_m, h->impedance.stiffness_N_per_m);
   if (h->has_force) s += fmt::format(" at grip force {:.4g} N", h->force_N);
   return s;
 }
@@ -113,7 +113,8 @@ int run_force_loop(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std
                        p.environment_stiffness_N_per_m, p.environment_damping_Ns_per_m,
                        stability::to_string(r.verdict));
     out << "  closed-loop roots (s):";
-    for (const auto& root : r.roots) out << fmt::format(" {:.6g}{:+.6g}i", root.real(), root.imag());
+    for (const auto& root : r.roots)
+      out << fmt::format(" {:.6g}{:+.6g}i", root.real(), root.imag());
     out << "\n";
   }
   if (r.verdict == stability::Verdict::kUnstable) return kExitUnstable;
@@ -154,8 +155,8 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
   if (o.sweep && rates.size() == 1) {
     // One rate, one swept value: a single curve against the swept parameter.
     Series merged{fmt::format("{} fixture limit", side_name), {}};
-    for (const Series& s : series) merged.points.insert(merged.points.end(), s.points.begin(),
-                                                        s.points.end());
+    for (const Series& s : series)
+      merged.points.insert(merged.points.end(), s.points.begin(), s.points.end());
     series = {merged};
   }
 
@@ -168,13 +169,14 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
                .dump(2)
         << "\n";
   } else {
-    out << fmt::format("maximum stable {} fixture stiffness (required damping ratio {:g}, "
-                       "tolerance {:g} N/m)\n",
-                       side_name, base.analysis.required_damping_ratio,
-                       base.analysis.stiffness_tolerance_N_per_m);
+    out << fmt::format(
+        "maximum stable {} fixture stiffness (required damping ratio {:g}, "
+        "tolerance {:g} N/m)\n",
+        side_name, base.analysis.required_damping_ratio, base.analysis.stiffness_tolerance_N_per_m);
     for (const json& j : limits) {
       std::string row = fmt::format("  {:>8g} Hz", j["sample_rate_hz"].get<double>());
-      if (o.sweep) row += fmt::format("  {} = {:<8g}", o.sweep->path, j[o.sweep->path].get<double>());
+      if (o.sweep)
+        row += fmt::format("  {} = {:<8g}", o.sweep->path, j[o.sweep->path].get<double>());
       const json& k = j["max_stable_stiffness_N_per_m"];
       row += k.is_null() ? std::string("  none") : fmt::format("  {:>12.6g} N/m", k.get<double>());
       if (j.contains("passivity_limit_N_per_m") && !j["passivity_limit_N_per_m"].is_null()) {
@@ -205,11 +207,11 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
     out << analysis_json(r, p).dump(2) << "\n";
   } else {
     out << fmt::format("{}: {}\n", cfg.source_name, stability::to_string(r.verdict));
-    out << fmt::format("  loop: {} at {:g} Hz, round trip {} samples, fixtures master {:g} N/m, "
-                       "slave {:g} N/m\n",
-                       stability::to_string(r.structure), p.sample_rate_hz,
-                       p.round_trip_delay_samples, p.master_fixture.stiffness_N_per_m,
-                       p.slave_fixture.stiffness_N_per_m);
+    out << fmt::format(
+        "  loop: {} at {:g} Hz, round trip {} samples, fixtures master {:g} N/m, "
+        "slave {:g} N/m\n",
+        stability::to_string(r.structure), p.sample_rate_hz, p.round_trip_delay_samples,
+        p.master_fixture.stiffness_N_per_m, p.slave_fixture.stiffness_N_per_m);
     out << fmt::format("  spectral radius {:.6f}, minimum damping ratio {:.4f} (required {:g})\n",
                        r.spectral_radius, r.min_damping_ratio, p.analysis.required_damping_ratio);
     out << fmt::format("  worst human ({} evaluated): {}\n", r.humans_evaluated,

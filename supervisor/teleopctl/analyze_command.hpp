@@ -38,8 +38,8 @@ struct AnalyzeOptions {
 };
 
 // Exit codes of `teleopctl analyze`.
-inline constexpr int kExitStable = 0;     // also: a limits table or force-loop run completed
-inline constexpr int kExitError = 1;      // bad configuration or I/O
+inline constexpr int kExitStable = 0;  // also: a limits table or force-loop run completed
+inline constexpr int kExitError = 1;   // bad configuration or I/O
 inline constexpr int kExitUsage = 2;
 inline constexpr int kExitUnstable = 3;
 inline constexpr int kExitUncertain = 4;

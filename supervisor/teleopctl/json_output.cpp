@@ -68,20 +68,20 @@ json limit_json(const stability::StiffnessLimit& l, stability::Side side, double
 json force_loop_json(const stability::ForceLoopResult& r, const ForceLoopParams& p) {
   json roots = json::array();
   for (const auto& root : r.roots) roots.push_back(complex_json(root));
-  json j = {{"controller", r.proportional_integral ? "PI" : "P"},
-            // The paper's B_v limit is eq. 14 for P; PI has no closed form, so its search.
-            {"bv_limit_Ns_per_m", optional_number(r.proportional_integral
-                                                      ? r.bv_limit_Ns_per_m
-                                                      : r.bv_limit_eq14_Ns_per_m)},
-            {"bv_limit_eq14_Ns_per_m", optional_number(r.bv_limit_eq14_Ns_per_m)},
-            {"bv_limit_at_configured_kv_Ns_per_m", optional_number(r.bv_limit_Ns_per_m)},
-            {"kv_limit_N_per_m", optional_number(r.kv_limit_N_per_m)},
-            {"verdict", stability::to_string(r.verdict)},
-            {"stable", r.stable},
-            {"environment_stiffness_N_per_m", p.environment_stiffness_N_per_m},
-            {"environment_damping_Ns_per_m", p.environment_damping_Ns_per_m},
-            {"characteristic_polynomial", r.characteristic_polynomial},
-            {"roots", roots}};
+  json j = {
+      {"controller", r.proportional_integral ? "PI" : "P"},
+      // The paper's B_v limit is eq. 14 for P; PI has no closed form, so its search.
+      {"bv_limit_Ns_per_m",
+       optional_number(r.proportional_integral ? r.bv_limit_Ns_per_m : r.bv_limit_eq14_Ns_per_m)},
+      {"bv_limit_eq14_Ns_per_m", optional_number(r.bv_limit_eq14_Ns_per_m)},
+      {"bv_limit_at_configured_kv_Ns_per_m", optional_number(r.bv_limit_Ns_per_m)},
+      {"kv_limit_N_per_m", optional_number(r.kv_limit_N_per_m)},
+      {"verdict", stability::to_string(r.verdict)},
+      {"stable", r.stable},
+      {"environment_stiffness_N_per_m", p.environment_stiffness_N_per_m},
+      {"environment_damping_Ns_per_m", p.environment_damping_Ns_per_m},
+      {"characteristic_polynomial", r.characteristic_polynomial},
+      {"roots", roots}};
   if (!r.limit_reason.empty()) j["reason"] = r.limit_reason;
   return j;
 }

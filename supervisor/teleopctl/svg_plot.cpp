@@ -97,9 +97,10 @@ std::string render_svg(const Chart& chart) {
         "<circle cx=\"{:.2f}\" cy=\"{:.2f}\" r=\"{:.2f}\" fill=\"none\" stroke=\"#888\" "
         "stroke-dasharray=\"4 3\"/>\n",
         px(0.0), py(0.0), px(1.0) - px(0.0));
-    svg += fmt::format("<line x1=\"{:.2f}\" y1=\"{:.2f}\" x2=\"{:.2f}\" y2=\"{:.2f}\" "
-                       "stroke=\"#ccc\"/>\n",
-                       px(x0), py(0.0), px(x1), py(0.0));
+    svg += fmt::format(
+        "<line x1=\"{:.2f}\" y1=\"{:.2f}\" x2=\"{:.2f}\" y2=\"{:.2f}\" "
+        "stroke=\"#ccc\"/>\n",
+        px(x0), py(0.0), px(x1), py(0.0));
   }
   double legend_y = kMargin + 14.0;
   for (const Series& s : chart.series) {
@@ -109,16 +110,16 @@ std::string render_svg(const Chart& chart) {
         if (!std::isfinite(x) || !std::isfinite(y)) continue;
         path += fmt::format("{}{:.2f},{:.2f} ", path.empty() ? "M" : "L", px(x), py(y));
       }
-      svg += fmt::format("<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"2\"/>\n",
-                         path, s.colour);
+      svg += fmt::format("<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"2\"/>\n", path,
+                         s.colour);
     }
     for (const auto& [x, y] : s.points) {
       if (!std::isfinite(x) || !std::isfinite(y)) continue;
       svg += fmt::format("<circle cx=\"{:.2f}\" cy=\"{:.2f}\" r=\"2.5\" fill=\"{}\"/>\n", px(x),
                          py(y), s.colour);
     }
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n",
-                       kMargin + 8.0, legend_y, s.colour, escape(s.label));
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" fill=\"{}\">{}</text>\n", kMargin + 8.0,
+                       legend_y, s.colour, escape(s.label));
     legend_y += 16.0;
   }
   svg += "</svg>\n";

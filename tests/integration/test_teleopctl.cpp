@@ -28,7 +28,9 @@ CliResult run(const std::string& args) {
   return r;
 }
 
-std::string example(const char* name) { return std::string(TELEOP_SOURCE_DIR) + "/examples/" + name; }
+std::string example(const char* name) {
+  return std::string(TELEOP_SOURCE_DIR) + "/examples/" + name;
+}
 
 std::string temp_config(const std::string& name, const std::string& text) {
   const std::string path = ::testing::TempDir() + name;
@@ -55,7 +57,7 @@ TEST(Teleopctl, ShippedPaddlesExampleIsStable) {
 
 TEST(Teleopctl, SlaveLimitTableOverRates) {
   const CliResult r = run("analyze " + example("paddles.textproto") +
-                    " --max-stiffness slave --rates 250,500,1000,2000 --json");
+                          " --max-stiffness slave --rates 250,500,1000,2000 --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["limits"].size(), 4u);
@@ -72,7 +74,7 @@ TEST(Teleopctl, SlaveLimitTableOverRates) {
 
 TEST(Teleopctl, SweepOfAGainAddsTheSweptValueToEachRow) {
   const CliResult r = run("analyze " + example("paddles.textproto") +
-                    " --max-stiffness master --sweep gains.kdm=1:3:1 --json");
+                          " --max-stiffness master --sweep gains.kdm=1:3:1 --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["limits"].size(), 3u);
@@ -91,7 +93,7 @@ TEST(Teleopctl, ForceLoopOfThePaperGives1105NPerM) {
 
 TEST(Teleopctl, SetOverrideMakesTheExampleUnstable) {
   const CliResult r = run("analyze " + example("paddles.textproto") +
-                    " --set slave.fixture.stiffness_N_per_m=20000 --json");
+                          " --set slave.fixture.stiffness_N_per_m=20000 --json");
   EXPECT_EQ(r.exit_code, 3) << r.out;
   EXPECT_EQ(nlohmann::json::parse(r.out)["verdict"], "unstable");
 }

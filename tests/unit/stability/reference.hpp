@@ -4,10 +4,10 @@
 // code and no realisation with the engine under test.
 #pragma once
 
+#include <algorithm>
+#include <boost/math/constants/constants.hpp>
 #include <boost/multiprecision/cpp_bin_float.hpp>
 #include <boost/multiprecision/cpp_complex.hpp>
-#include <boost/math/constants/constants.hpp>
-#include <algorithm>
 #include <complex>
 #include <vector>
 
@@ -140,8 +140,8 @@ inline std::vector<Complex> roots(Poly p) {
   if (n == 0) return out;
   std::vector<Complex> z(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double ang = 2.0 * 3.141592653589793 * (static_cast<double>(i) + 0.25) /
-                       static_cast<double>(n);
+    const double ang =
+        2.0 * 3.141592653589793 * (static_cast<double>(i) + 0.25) / static_cast<double>(n);
     z[i] = Complex(Real(0.9 * std::cos(ang)), Real(0.9 * std::sin(ang)));
   }
   auto eval = [&](const Complex& x, Complex& f, Complex& df) {

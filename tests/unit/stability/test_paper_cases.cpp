@@ -61,7 +61,8 @@ TEST(PaperCases, Fig2GainsAreUnstableAt500Hz) {
   EXPECT_EQ(r.structure, Structure::kSlaveOnly);
   EXPECT_FALSE(r.worst_human.has_value());
   EXPECT_LT(r.min_damping_ratio, 0.0);
-  const double ref = reference::spectral_radius(reference::roots(reference::slave_polynomial(spec_of(p))));
+  const double ref =
+      reference::spectral_radius(reference::roots(reference::slave_polynomial(spec_of(p))));
   EXPECT_GT(ref, 1.0);
   EXPECT_NEAR(r.spectral_radius, ref, 1e-12);
 }
@@ -72,12 +73,14 @@ TEST(PaperCases, Fig6GainsStableAt500AndUnstableAt6000ForTheFixedHuman) {
   p.gains = {800.0, 800.0, 6.0, 6.0, 0.0, 0.0, 0.0};
   p.slave_fixture.stiffness_N_per_m = 500.0;
   EXPECT_EQ(analyze(p).verdict, Verdict::kStable);
-  EXPECT_LT(reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
-            1.0);
+  EXPECT_LT(
+      reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
+      1.0);
   p.slave_fixture.stiffness_N_per_m = 6000.0;
   EXPECT_EQ(analyze(p).verdict, Verdict::kUnstable);
-  EXPECT_GT(reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
-            1.0);
+  EXPECT_GT(
+      reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
+      1.0);
 }
 
 TEST(PaperCases, Fig6SlaveLimitLiesWhereTheReferenceCrossesTheUnitCircle) {
@@ -90,11 +93,13 @@ TEST(PaperCases, Fig6SlaveLimitLiesWhereTheReferenceCrossesTheUnitCircle) {
   EXPECT_GT(k, 4500.0);
   EXPECT_LT(k, 6000.0);
   p.slave_fixture.stiffness_N_per_m = k;
-  EXPECT_LT(reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
-            1.0);
+  EXPECT_LT(
+      reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
+      1.0);
   p.slave_fixture.stiffness_N_per_m = k + 2.0 * p.analysis.stiffness_tolerance_N_per_m;
-  EXPECT_GT(reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
-            1.0);
+  EXPECT_GT(
+      reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
+      1.0);
 }
 
 TEST(PaperCases, MasterWallWithoutHumanApproachesColgateSchenkelAsTShrinks) {
@@ -136,7 +141,8 @@ TEST(PaperCases, UnilateralSlaveLimitDoesNotDependOnTheHuman) {
   p.gains.kps = 1000.0;
   p.gains.kds = 6.0;
   std::vector<double> limits;
-  for (const HumanImpedance h : {HumanImpedance{0.003, 0.6, 50.0}, HumanImpedance{0.02, 7.0, 1000.0}}) {
+  for (const HumanImpedance h :
+       {HumanImpedance{0.003, 0.6, 50.0}, HumanImpedance{0.02, 7.0, 1000.0}}) {
     p.human.kind = HumanKind::kFixed;
     p.human.fixed = h;
     limits.push_back(max_stable_stiffness(p, Side::kSlave).max_stable_stiffness_N_per_m.value());
@@ -152,9 +158,11 @@ TEST(PaperCases, UnilateralSlaveLimitDoesNotDependOnTheHuman) {
 
   // And it is where the slave's own characteristic polynomial leaves the unit circle.
   p.slave_fixture.stiffness_N_per_m = limits.front();
-  EXPECT_LT(reference::spectral_radius(reference::roots(reference::slave_polynomial(spec_of(p)))), 1.0);
+  EXPECT_LT(reference::spectral_radius(reference::roots(reference::slave_polynomial(spec_of(p)))),
+            1.0);
   p.slave_fixture.stiffness_N_per_m = limits.front() + 2.0;
-  EXPECT_GT(reference::spectral_radius(reference::roots(reference::slave_polynomial(spec_of(p)))), 1.0);
+  EXPECT_GT(reference::spectral_radius(reference::roots(reference::slave_polynomial(spec_of(p)))),
+            1.0);
 }
 
 TEST(PaperCases, SlaveLimitRisesWithSampleRate) {

@@ -87,9 +87,13 @@ TEST(Structure, RandomLoopsMatchTheTransferFunctionReference) {
     p.master_device = {log_uniform(0.005, 2.0), log_uniform(0.01, 5.0)};
     p.slave_device = {log_uniform(0.005, 2.0), log_uniform(0.01, 5.0)};
     p.human.fixed = {log_uniform(0.001, 0.5), log_uniform(0.1, 10.0), log_uniform(10.0, 2000.0)};
-    p.gains = {log_uniform(10.0, 3000.0), log_uniform(10.0, 3000.0), log_uniform(0.1, 10.0),
-               log_uniform(0.1, 10.0), u(rng) < 0.5 ? 0.0 : log_uniform(0.1, 3.0),
-               u(rng) < 0.5 ? 0.0 : log_uniform(0.1, 3.0), 0.0};
+    p.gains = {log_uniform(10.0, 3000.0),
+               log_uniform(10.0, 3000.0),
+               log_uniform(0.1, 10.0),
+               log_uniform(0.1, 10.0),
+               u(rng) < 0.5 ? 0.0 : log_uniform(0.1, 3.0),
+               u(rng) < 0.5 ? 0.0 : log_uniform(0.1, 3.0),
+               0.0};
     p.scaling = {log_uniform(0.2, 5.0), log_uniform(0.2, 5.0)};
     p.master_fixture.stiffness_N_per_m = u(rng) < 0.5 ? 0.0 : log_uniform(10.0, 1e4);
     p.slave_fixture.stiffness_N_per_m = log_uniform(10.0, 1e4);
@@ -196,8 +200,9 @@ TEST(Structure, UnstableWithoutAnyFixtureHasNoLimitAndSaysWhy) {
   // K_p = 20000 N/m at 250 Hz: the coupling alone is unstable (reference polynomial agrees).
   TeleopParams p = bilateral(250.0);
   p.gains = {20000.0, 20000.0, 2.0, 2.0, 0.0, 0.0, 0.0};
-  ASSERT_GT(reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
-            1.0);
+  ASSERT_GT(
+      reference::spectral_radius(reference::roots(reference::bilateral_polynomial(spec_of(p)))),
+      1.0);
   const StiffnessLimit l = max_stable_stiffness(p, Side::kSlave);
   EXPECT_FALSE(l.max_stable_stiffness_N_per_m.has_value());
   EXPECT_NE(l.reason.find("unstable with no fixture"), std::string::npos) << l.reason;

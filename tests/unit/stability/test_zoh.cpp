@@ -20,8 +20,8 @@ void expect_close(double got, const reference::Real& want, double scale, const c
                   const Case& c) {
   const double w = static_cast<double>(want);
   const double denom = std::max(std::abs(w), 1e-6 * scale);
-  EXPECT_LE(std::abs(got - w) / denom, 1e-12) << c.name << " " << what << " got " << got
-                                              << " want " << w;
+  EXPECT_LE(std::abs(got - w) / denom, 1e-12)
+      << c.name << " " << what << " got " << got << " want " << w;
 }
 
 TEST(Zoh, MatchesHighPrecisionReferenceInEveryDampingRegime) {
@@ -42,9 +42,8 @@ TEST(Zoh, MatchesHighPrecisionReferenceInEveryDampingRegime) {
   };
   for (const Case& c : cases) {
     const ZohPlant got = discretize_plant(c.m, c.b, c.k, c.t);
-    const reference::Zoh want =
-        reference::zoh(reference::Real(c.m), reference::Real(c.b), reference::Real(c.k),
-                       reference::Real(c.t));
+    const reference::Zoh want = reference::zoh(reference::Real(c.m), reference::Real(c.b),
+                                               reference::Real(c.k), reference::Real(c.t));
     for (int i = 0; i < 2; ++i) {
       for (int j = 0; j < 2; ++j) {
         // Rows have different units (m and m/s): scale each row by its own magnitude.
