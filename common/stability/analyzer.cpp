@@ -4,8 +4,9 @@
 
 namespace teleop::stability {
 
-LoopEvaluator::LoopEvaluator(const TeleopParams& params, bool master_wall_used)
-    : model_(params, master_wall_used) {
+LoopEvaluator::LoopEvaluator(const TeleopParams& params, bool master_wall_used,
+                             bool slave_wall_used)
+    : model_(params, master_wall_used, slave_wall_used) {
   human_matters_ = model_.human_matters() && params.human.kind != HumanKind::kNone;
   if (model_.human_matters()) {
     humans_ = human_samples(params.human);
@@ -27,9 +28,10 @@ Spectrum LoopEvaluator::spectrum(std::size_t human, double kmvf, double ksvf,
   return parts.size() == 1 ? parts.front() : merge(parts);
 }
 
-BandResult LoopEvaluator::sweep(double kmvf, double ksvf) const {
+BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const {
   BandResult result;
   result.min_damping_ratio = 2.0;
+  double failing_zeta = 3.0;
   bool any_uncertain = false;
   bool any_unstable = false;
   // Blocks without the master do not depend on the human: their spectrum is computed once.
@@ -49,17 +51,27 @@ BandResult LoopEvaluator::sweep(double kmvf, double ksvf) const {
     }
     double zeta = 2.0;
     double radius = 0.0;
+    bool fails = false;
     for (const Spectrum& s : parts) {
       zeta = std::min(zeta, s.min_damping_ratio);
       radius = std::max(radius, s.spectral_radius);
       any_unstable = any_unstable || s.verdict == Verdict::kUnstable;
       any_uncertain = any_uncertain || s.verdict == Verdict::kUncertain;
+      fails = fails || s.verdict != Verdict::kStable;
     }
+    fails = fails || zeta < required;
     if (zeta < result.min_damping_ratio) {
       result.min_damping_ratio = zeta;
       result.worst_index = i;
     }
-    result.spectral_radius = std::max(result.spectral_radius, radius);
+    if (radius > result.spectral_radius) {
+      result.spectral_radius = radius;
+      result.radius_index = i;
+    }
+    if (fails && zeta < failing_zeta) {
+      failing_zeta = zeta;
+      result.failing_index = i;
+    }
   }
   result.verdict = any_unstable    ? Verdict::kUnstable
                    : any_uncertain ? Verdict::kUncertain
@@ -93,7 +105,10 @@ AnalysisResult analyze(const TeleopParams& params) {
   }
   out.spectral_radius = band.spectral_radius;
   out.min_damping_ratio = band.min_damping_ratio;
-  if (ev.human_matters()) out.worst_human = ev.human(band.worst_index);
+  if (ev.human_matters()) {
+    out.worst_human = ev.human(band.worst_index);
+    out.radius_human = ev.human(band.radius_index);
+  }
   return out;
 }
 

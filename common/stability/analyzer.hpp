@@ -17,14 +17,18 @@ struct BandResult {
   Verdict verdict{Verdict::kStable};  // unstable if any human is, else uncertain if any is
   double min_damping_ratio{1.0};
   double spectral_radius{0.0};
-  std::size_t worst_index{0};  // the human with the lowest damping ratio
+  std::size_t worst_index{0};   // the human with the lowest damping ratio
+  std::size_t radius_index{0};  // the human with the largest spectral radius
+  // A human that fails the requirement (the lowest damping ratio among those that do), if any.
+  std::optional<std::size_t> failing_index{};
 };
 
 // Holds what does not change between evaluations: the model structure, the humans and their
 // discretised master plants, so a stiffness search pays only for the eigenvalues.
 class LoopEvaluator {
  public:
-  explicit LoopEvaluator(const TeleopParams& params, bool master_wall_used = false);
+  explicit LoopEvaluator(const TeleopParams& params, bool master_wall_used = false,
+                         bool slave_wall_used = false);
 
   [[nodiscard]] const DiscreteModel& model() const { return model_; }
   [[nodiscard]] std::size_t human_count() const { return humans_.size(); }
@@ -33,7 +37,9 @@ class LoopEvaluator {
 
   [[nodiscard]] Spectrum spectrum(std::size_t human, double master_fixture_N_per_m,
                                   double slave_fixture_N_per_m, bool estimate_error) const;
-  [[nodiscard]] BandResult sweep(double master_fixture_N_per_m, double slave_fixture_N_per_m) const;
+  // `required_damping_ratio` only decides `failing_index`.
+  [[nodiscard]] BandResult sweep(double master_fixture_N_per_m, double slave_fixture_N_per_m,
+                                 double required_damping_ratio = 0.0) const;
 
  private:
   DiscreteModel model_;
@@ -46,8 +52,9 @@ struct AnalysisResult {
   Verdict verdict{Verdict::kStable};
   double spectral_radius{0.0};
   double min_damping_ratio{1.0};
-  std::optional<HumanSample> worst_human{};  // empty when the human does not matter
-  Spectrum spectrum{};                       // of the worst human's loop, with error bounds
+  std::optional<HumanSample> worst_human{};   // empty when the human does not matter
+  std::optional<HumanSample> radius_human{};  // the human with the largest spectral radius
+  Spectrum spectrum{};                        // of the worst human's loop, with error bounds
   Structure structure{Structure::kBilateral};
   std::size_t humans_evaluated{0};
 };

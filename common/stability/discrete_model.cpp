@@ -13,11 +13,14 @@ const char* to_string(Structure s) {
       return "decoupled";
     case Structure::kSlaveOnly:
       return "slave_only";
+    case Structure::kMasterOnly:
+      return "master_only";
   }
   return "bilateral";
 }
 
-DiscreteModel::DiscreteModel(const TeleopParams& params, bool master_wall_used)
+DiscreteModel::DiscreteModel(const TeleopParams& params, bool master_wall_used,
+                             bool slave_wall_used)
     : p_(params), period_s_(params.period_s()) {
   if (p_.velocity_cutoff_hz > 0.0) {
     filter_r_ = std::exp(-2.0 * std::numbers::pi * p_.velocity_cutoff_hz * period_s_);
@@ -33,10 +36,16 @@ DiscreteModel::DiscreteModel(const TeleopParams& params, bool master_wall_used)
   const bool slave_follows_master = g.kps != 0.0 || g.kds != 0.0;
   const bool master_actuated = master_feels_slave || g.kvm != 0.0 ||
                                p_.master_fixture.stiffness_N_per_m != 0.0 || master_wall_used;
+  // A slave that does not follow the master is not part of the teleoperator (haptic-only use);
+  // it is analysed only when its own fixture is what is asked about.
+  const bool slave_in_loop = slave_follows_master || slave_wall_used ||
+                             p_.slave_fixture.stiffness_N_per_m != 0.0 || !master_actuated;
   if (master_feels_slave && slave_follows_master) {
     structure_ = Structure::kBilateral;
-  } else if (master_actuated) {
+  } else if (master_actuated && slave_in_loop) {
     structure_ = Structure::kDecoupled;
+  } else if (master_actuated) {
+    structure_ = Structure::kMasterOnly;
   } else {
     structure_ = Structure::kSlaveOnly;
   }
@@ -61,6 +70,9 @@ std::vector<ModelBlock> DiscreteModel::build(const ZohPlant& master_plant, doubl
       break;
     case Structure::kSlaveOnly:
       blocks.push_back(build_block(false, true, master_plant, kmvf, ksvf));
+      break;
+    case Structure::kMasterOnly:
+      blocks.push_back(build_block(true, false, master_plant, kmvf, ksvf));
       break;
   }
   return blocks;

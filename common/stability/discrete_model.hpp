@@ -14,9 +14,10 @@ namespace teleop::stability {
 
 // Which parts of the loop interact, decided from the gains (DESIGN §2 "Decoupled cases").
 enum class Structure {
-  kBilateral,  // master and slave feed back on each other: one block, the delay enters
-  kDecoupled,  // one side ignores the other: master block (with its human) and slave block
-  kSlaveOnly,  // master unactuated: the slave alone, no human needed
+  kBilateral,   // master and slave feed back on each other: one block, the delay enters
+  kDecoupled,   // one side ignores the other: master block (with its human) and slave block
+  kSlaveOnly,   // master unactuated: the slave alone, no human needed
+  kMasterOnly,  // the slave does not follow: the master, its human and its wall alone
 };
 
 [[nodiscard]] const char* to_string(Structure s);
@@ -34,9 +35,10 @@ struct ModelBlock {
 // computed once; build() is then cheap enough to call for every human of a band.
 class DiscreteModel {
  public:
-  // `master_wall_used`: analyse as if the master fixture may be non-zero (a master-side
-  // stiffness search) even if the configuration's master fixture is 0.
-  explicit DiscreteModel(const TeleopParams& params, bool master_wall_used = false);
+  // `master_wall_used` / `slave_wall_used`: analyse as if that fixture may be non-zero (a
+  // stiffness search on that side) even if the configuration's fixture there is 0.
+  explicit DiscreteModel(const TeleopParams& params, bool master_wall_used = false,
+                         bool slave_wall_used = false);
 
   [[nodiscard]] Structure structure() const { return structure_; }
   [[nodiscard]] bool human_matters() const { return structure_ != Structure::kSlaveOnly; }

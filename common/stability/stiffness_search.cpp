@@ -26,7 +26,7 @@ struct Searcher {
     const Spectrum s = ev.spectrum(human, kmvf(k), ksvf(k), false);
     return s.verdict == Verdict::kStable && s.min_damping_ratio >= required;
   }
-  BandResult band(double k) const { return ev.sweep(kmvf(k), ksvf(k)); }
+  BandResult band(double k) const { return ev.sweep(kmvf(k), ksvf(k), required); }
 };
 
 std::string describe_failure(const BandResult& r, double required, Side side, double other) {
@@ -52,54 +52,68 @@ std::string describe_failure(const BandResult& r, double required, Side side, do
 
 }  // namespace
 
-double master_passivity_limit(const TeleopParams& p) {
+std::optional<double> master_passivity_limit(const TeleopParams& p) {
   const double beta = p.scaling.force;
   const double virtual_damping = std::abs(beta * p.gains.kdm + p.gains.kvm);
-  const double limit = 2.0 * (p.master_device.damping_Ns_per_m - virtual_damping) / p.period_s() -
-                       beta * p.gains.kpm;
-  return std::max(0.0, limit);
+  const double b = p.master_device.damping_Ns_per_m;
+  if (b <= virtual_damping) return std::nullopt;  // not passive at any stiffness
+  return std::max(0.0, 2.0 * (b - virtual_damping) / p.period_s() - beta * p.gains.kpm);
 }
 
 StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
                                     const SearchOptions& options) {
-  const LoopEvaluator ev(params, side == Side::kMaster);
+  const LoopEvaluator ev(params, side == Side::kMaster, side == Side::kSlave);
   const double other = side == Side::kMaster ? params.slave_fixture.stiffness_N_per_m
                                              : params.master_fixture.stiffness_N_per_m;
   const double required = params.analysis.required_damping_ratio;
   const double tol = params.analysis.stiffness_tolerance_N_per_m;
   Searcher s{ev, side, other, required};
   StiffnessLimit out;
-  if (side == Side::kMaster) out.passivity_limit_N_per_m = master_passivity_limit(params);
+  out.other_fixture_N_per_m = other;
+  if (side == Side::kMaster) {
+    out.passivity_limit_N_per_m = master_passivity_limit(params);
+    if (!out.passivity_limit_N_per_m) {
+      out.passivity_reason =
+          "not passive at any stiffness: the master's virtual damping |beta kdm + kvm| is not "
+          "below its device damping b";
+    }
+  }
+  auto finish = [&]() -> StiffnessLimit& {
+    out.evaluations = s.evaluations;
+    return out;
+  };
+  auto band = [&](double k) {
+    ++out.band_verifications;
+    return s.band(k);
+  };
 
-  // The lower end. With no restoring force at all (no human spring, no coupling) a free
-  // mass has a rigid-body mode at z = 1: marginal at K = 0 exactly, so start just above it.
-  BandResult lo_band = s.band(0.0);
-  ++out.band_verifications;
+  // The lower end. With no restoring force at all (no human spring, no coupling) a free mass
+  // has a rigid-body mode at z = 1: marginal at K = 0 exactly, so start just above it.
+  BandResult lo_band = band(0.0);
   double k_lo = 0.0;
   if (!meets_requirement(lo_band, required)) {
-    const BandResult tiny = s.band(tol);
-    ++out.band_verifications;
-    if (lo_band.verdict != Verdict::kUnstable && meets_requirement(tiny, required)) {
+    const BandResult tiny =
+        lo_band.verdict == Verdict::kUncertain ? band(tol) : BandResult{Verdict::kUnstable};
+    if (lo_band.verdict == Verdict::kUncertain && meets_requirement(tiny, required)) {
       k_lo = tol;
       out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
       lo_band = tiny;
     } else {
       out.reason = describe_failure(lo_band, required, side, other);
-      if (ev.human_matters()) out.worst_human = ev.human(lo_band.worst_index);
-      out.evaluations = s.evaluations;
-      return out;
+      if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
+      return finish();
     }
   }
 
   std::size_t human = lo_band.worst_index;
-  double ceiling = options.max_stiffness_N_per_m;  // known to fail for some human (or the cap)
+  double ceiling = options.max_stiffness_N_per_m;  // known to fail for `human` (or the cap)
   bool ceiling_fails = false;
-  for (std::size_t round = 0; round <= ev.human_count(); ++round) {
+  // Each round either returns or moves the ceiling down to a stiffness where some human fails.
+  for (int round = 0; round < 64; ++round) {
     // Geometric scan from the known-good lower end for this human.
     double pass = k_lo;
     double fail = -1.0;
-    double k = std::max(k_lo, tol);
-    while (true) {
+    for (double k = std::max(k_lo, tol);; k *= options.growth) {
       if (k >= ceiling) {
         if (ceiling_fails || !s.passes(human, ceiling)) fail = ceiling;
         break;
@@ -109,46 +123,51 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
         break;
       }
       pass = k;
-      k *= options.growth;
     }
     if (fail < 0.0) {
       // This human meets the requirement up to the cap; the band decides.
-      const BandResult at_cap = s.band(ceiling);
-      ++out.band_verifications;
+      const BandResult at_cap = band(ceiling);
       if (meets_requirement(at_cap, required)) {
         out.reason = fmt::format("meets the requirement for every stiffness up to {:g} N/m",
                                  options.max_stiffness_N_per_m);
-        out.evaluations = s.evaluations;
-        return out;
+        return finish();
       }
-      human = at_cap.worst_index;
+      human = at_cap.failing_index.value_or(at_cap.worst_index);
       ceiling_fails = true;
       continue;
     }
+    // Bisection to the tolerance, or until the midpoint no longer moves in floating point.
     while (fail - pass > tol) {
       const double mid = 0.5 * (pass + fail);
+      if (mid <= pass || mid >= fail) break;
       if (s.passes(human, mid)) {
         pass = mid;
       } else {
         fail = mid;
       }
     }
-    const BandResult check = s.band(pass);
-    ++out.band_verifications;
-    if (meets_requirement(check, required)) {
+    // Verify over the whole band: at the answer and at halvings below it, so that another
+    // human's unstable window under this human's limit is not missed.
+    std::optional<std::pair<double, std::size_t>> failure;
+    for (double k = pass; k > k_lo && k >= pass / 1024.0; k *= 0.5) {
+      const BandResult check = band(k);
+      if (!meets_requirement(check, required)) {
+        failure = std::pair{k, check.failing_index.value_or(check.worst_index)};
+        break;
+      }
+    }
+    if (!failure) {
       out.max_stable_stiffness_N_per_m = pass;
       if (ev.human_matters()) out.worst_human = ev.human(human);
-      out.evaluations = s.evaluations;
-      return out;
+      return finish();
     }
-    // Another human fails below this human's limit: search again on that one, under `pass`.
-    human = check.worst_index;
-    ceiling = pass;
+    // Another human fails there: search again on that one, under that stiffness.
+    human = failure->second;
+    ceiling = failure->first;
     ceiling_fails = true;
   }
   out.reason = "the search did not converge over the human band";
-  out.evaluations = s.evaluations;
-  return out;
+  return finish();
 }
 
 }  // namespace teleop::stability

@@ -23,17 +23,21 @@ struct StiffnessLimit {
   std::string reason{};                             // why there is no finite limit, or a caveat
   std::optional<HumanSample> worst_human{};         // the human whose loop sets the limit
   std::optional<double> passivity_limit_N_per_m{};  // Colgate-Schenkel, master wall only
-  long evaluations{0};                              // single-human spectra computed
-  int band_verifications{0};                        // whole-band sweeps
+  std::string passivity_reason{};                   // why there is no passivity bound (master side)
+  double other_fixture_N_per_m{0.0};  // the other side's fixture, held at its configured value
+  long evaluations{0};                // single-human spectra computed
+  int band_verifications{0};          // whole-band sweeps
 };
 
-// Searches on the current worst human (scan then bisection), verifies the answer over the
-// whole band, and repeats with whichever human fails there until the band agrees.
+// Searches on the current worst human (geometric scan, then bisection), verifies the whole
+// band at the answer and at halvings below it, and repeats with whichever human fails there
+// until the band agrees. The other side's fixture is held at its configured value.
 [[nodiscard]] StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
                                                   const SearchOptions& options = {});
 
 // b > K T / 2 + |B| for the master wall (with the master's own position and velocity gains
 // counted in K and B): the conservative colocated bound the paper compares with (Fig. 14).
-[[nodiscard]] double master_passivity_limit(const TeleopParams& params);
+// Empty when the master is not passive at any stiffness (|B| >= b).
+[[nodiscard]] std::optional<double> master_passivity_limit(const TeleopParams& params);
 
 }  // namespace teleop::stability

@@ -68,8 +68,11 @@ std::string fmt_opt(const std::optional<double>& v, const char* unit) {
   return v ? fmt::format("{:.6g} {}", *v, unit) : std::string("none");
 }
 
-std::string human_text(const std::optional<stability::HumanSample>& h) {
-  if (!h) return "n/a (the human does not enter this loop)";
+std::string human_text(const std::optional<stability::HumanSample>& h, HumanKind kind) {
+  if (!h) {
+    return kind == HumanKind::kNone ? "none configured"
+                                    : "n/a (the human does not enter this loop)";
+  }
   std::string s =
       fmt::format("m_h = {:.4g} kg, b_h = {:.4g} Ns/m, k_h = {:.4g} N/m", h->impedance.mass_kg,
                   h->impedance.damping_Ns_per_m, h->impedance.stiffness_N_per_m);
@@ -170,18 +173,23 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
         << "\n";
   } else {
     out << fmt::format(
-        "maximum stable {} fixture stiffness (required damping ratio {:g}, "
-        "tolerance {:g} N/m)\n",
-        side_name, base.analysis.required_damping_ratio, base.analysis.stiffness_tolerance_N_per_m);
+        "maximum stable {} fixture stiffness (required damping ratio {:g}, tolerance {:g} N/m, "
+        "{} fixture held at {:g} N/m)\n",
+        side_name, base.analysis.required_damping_ratio, base.analysis.stiffness_tolerance_N_per_m,
+        side == Side::kMaster ? "slave" : "master",
+        side == Side::kMaster ? base.slave_fixture.stiffness_N_per_m
+                              : base.master_fixture.stiffness_N_per_m);
     for (const json& j : limits) {
       std::string row = fmt::format("  {:>8g} Hz", j["sample_rate_hz"].get<double>());
       if (o.sweep)
         row += fmt::format("  {} = {:<8g}", o.sweep->path, j[o.sweep->path].get<double>());
       const json& k = j["max_stable_stiffness_N_per_m"];
       row += k.is_null() ? std::string("  none") : fmt::format("  {:>12.6g} N/m", k.get<double>());
-      if (j.contains("passivity_limit_N_per_m") && !j["passivity_limit_N_per_m"].is_null()) {
-        row += fmt::format("  (passivity bound {:.6g} N/m)",
-                           j["passivity_limit_N_per_m"].get<double>());
+      if (j.contains("passivity_limit_N_per_m")) {
+        row += j["passivity_limit_N_per_m"].is_null()
+                   ? std::string("  (not passive at any stiffness)")
+                   : fmt::format("  (passivity bound {:.6g} N/m)",
+                                 j["passivity_limit_N_per_m"].get<double>());
       }
       if (j.contains("reason")) row += "  — " + j["reason"].get<std::string>();
       out << row << "\n";
@@ -215,7 +223,7 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
     out << fmt::format("  spectral radius {:.6f}, minimum damping ratio {:.4f} (required {:g})\n",
                        r.spectral_radius, r.min_damping_ratio, p.analysis.required_damping_ratio);
     out << fmt::format("  worst human ({} evaluated): {}\n", r.humans_evaluated,
-                       human_text(r.worst_human));
+                       human_text(r.worst_human, p.human.kind));
     out << "  eigenvalues of the worst case:\n";
     out << "            z                          |z|         s (rad/s)                    zeta\n";
     for (const stability::Mode& m : r.spectrum.modes) {

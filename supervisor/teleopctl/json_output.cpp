@@ -44,6 +44,7 @@ json analysis_json(const stability::AnalysisResult& r, const TeleopParams& p) {
            r.verdict == stability::Verdict::kStable &&
                r.min_damping_ratio >= p.analysis.required_damping_ratio},
           {"worst_human", human_json(r.worst_human)},
+          {"spectral_radius_human", human_json(r.radius_human)},
           {"structure", stability::to_string(r.structure)},
           {"humans_evaluated", r.humans_evaluated},
           {"sample_rate_hz", p.sample_rate_hz},
@@ -59,8 +60,10 @@ json limit_json(const stability::StiffnessLimit& l, stability::Side side, double
             {"worst_human", human_json(l.worst_human)},
             {"evaluations", l.evaluations}};
   if (!l.reason.empty()) j["reason"] = l.reason;
+  j["other_fixture_N_per_m"] = l.other_fixture_N_per_m;
   if (side == stability::Side::kMaster) {
     j["passivity_limit_N_per_m"] = optional_number(l.passivity_limit_N_per_m);
+    if (!l.passivity_reason.empty()) j["passivity_reason"] = l.passivity_reason;
   }
   return j;
 }

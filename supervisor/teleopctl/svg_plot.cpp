@@ -13,7 +13,13 @@ namespace {
 
 constexpr double kWidth = 640.0;
 constexpr double kHeight = 480.0;
-constexpr double kMargin = 60.0;
+constexpr double kMargin = 80.0;
+
+// Tick labels: plain digits up to a million, otherwise four significant digits.
+std::string tick(double v) {
+  if (std::abs(v) >= 100.0 && std::abs(v) < 1e6) return fmt::format("{:.0f}", v);
+  return fmt::format("{:.4g}", v);
+}
 
 std::string escape(const std::string& s) {
   std::string out;
@@ -81,10 +87,10 @@ std::string render_svg(const Chart& chart) {
   for (int i = 0; i <= 4; ++i) {
     const double xv = x0 + (x1 - x0) * i / 4.0;
     const double yv = y0 + (y1 - y0) * i / 4.0;
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">{:.4g}</text>\n",
-                       px(xv), kHeight - kMargin + 16.0, xv);
-    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"end\">{:.4g}</text>\n",
-                       kMargin - 6.0, py(yv) + 4.0, yv);
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">{}</text>\n", px(xv),
+                       kHeight - kMargin + 16.0, tick(xv));
+    svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"end\">{}</text>\n",
+                       kMargin - 6.0, py(yv) + 4.0, tick(yv));
   }
   svg += fmt::format("<text x=\"{:.1f}\" y=\"{:.1f}\" text-anchor=\"middle\">{}</text>\n",
                      kMargin + pw / 2.0, kHeight - 16.0, escape(chart.x_label));

@@ -110,6 +110,23 @@ inline Poly bilateral_polynomial(const LoopSpec& s) {
   return add(mul(left, right), mul(mul(nm, pms), mul(ns, qsm)), Real(-1));
 }
 
+// The master with its human and wall alone (the slave does not follow): D_m(z-r) + N_m P_mm.
+inline Poly master_polynomial(const LoopSpec& s) {
+  const Real t(s.t);
+  Real r(0), a(1);
+  if (s.cutoff_hz > 0) {
+    r = exp(-2 * boost::math::constants::pi<Real>() * Real(s.cutoff_hz) * t);
+    a = 1 - r;
+  }
+  Poly nm, dm;
+  plant_tf(zoh(Real(s.mm) + s.mh, Real(s.bm) + s.bh, Real(s.kh), t), nm, dm);
+  const Poly zr = {-r, Real(1)};
+  const Poly z1 = {Real(-1), Real(1)};
+  const Real beta(s.beta);
+  const Poly pmm = add(mul({beta * s.kpm + s.kmvf}, zr), mul({a / t * (beta * s.kdm + s.kvm)}, z1));
+  return add(mul(dm, zr), mul(nm, pmm));
+}
+
 // The slave alone (master unactuated): D_s(z-r) + N_s Q_ss.
 inline Poly slave_polynomial(const LoopSpec& s) {
   const Real t(s.t);
