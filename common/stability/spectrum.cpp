@@ -10,6 +10,8 @@ namespace teleop::stability {
 namespace {
 
 constexpr double kEps = std::numeric_limits<double>::epsilon();
+constexpr int kSmall = 12;
+using SmallMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kSmall, kSmall>;
 
 // Parlett-Reinsch balancing with powers of two (exact): states in metres, newtons and
 // metres-per-sample live side by side, and balancing keeps the eigenvalues well conditioned.
@@ -106,10 +108,18 @@ Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int stru
   if (n > 0) {
     const Eigen::MatrixXd a = balance(a_in);
     const double unit_error = 8.0 * static_cast<double>(n) * kEps * a.norm();
-    // Reused between calls so a band sweep does not allocate the solver's workspace each time.
+    // Reused between calls so a band sweep does not allocate the solver's workspace each time;
+    // the eigenvalue-only path of a sweep runs on stack-sized matrices.
     thread_local Eigen::EigenSolver<Eigen::MatrixXd> es;
-    es.compute(a, estimate_error);
-    Eigen::VectorXcd lambda = es.eigenvalues();
+    Eigen::VectorXcd lambda;
+    if (!estimate_error && n <= kSmall) {
+      thread_local Eigen::EigenSolver<SmallMatrix> small;
+      small.compute(SmallMatrix(a), false);
+      lambda = small.eigenvalues();
+    } else {
+      es.compute(a, estimate_error);
+      lambda = es.eigenvalues();
+    }
     bool near_circle = false;
     for (Eigen::Index i = 0; i < n; ++i) {
       near_circle = near_circle || std::abs(1.0 - std::abs(lambda(i))) <= kFastPathMargin;
@@ -128,7 +138,9 @@ Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int stru
       const bool invertible = lu.isInvertible();
       const Eigen::MatrixXcd vinv = invertible ? Eigen::MatrixXcd(lu.inverse()) : v;
       for (Eigen::Index i = 0; i < n; ++i) {
-        double kappa = kappa_cap;
+        // A numerically singular eigenvector matrix means a (nearly) defective eigenvalue
+        // somewhere: bound every mode by the sqrt(|dA|) splitting of a Jordan pair.
+        double kappa = 1.0 / std::sqrt(unit_error);
         if (invertible) kappa = std::min(kappa_cap, vinv.row(i).norm() * v.col(i).norm());
         // A defective (Jordan) pair splits by sqrt(|dA|): never claim less than that.
         errors[static_cast<std::size_t>(i)] =

@@ -149,7 +149,7 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
     // Verify over the whole band: at the answer and at halvings below it, so that another
     // human's unstable window under this human's limit is not missed.
     std::optional<std::pair<double, std::size_t>> failure;
-    for (double k = pass; k > k_lo && k >= pass / 1024.0; k *= 0.5) {
+    for (double k = pass; k > k_lo && k >= pass / 128.0; k *= 0.5) {
       const BandResult check = band(k);
       if (!meets_requirement(check, required)) {
         failure = std::pair{k, check.failing_index.value_or(check.worst_index)};
