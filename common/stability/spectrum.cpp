@@ -50,7 +50,8 @@ Eigen::MatrixXd balance(Eigen::MatrixXd a) {
 Mode make_mode(std::complex<double> z, double period_s) {
   Mode m;
   m.z = z;
-  if (!(std::abs(z) > 1e-300)) {
+  m.abs_z = std::abs(z);
+  if (!(m.abs_z > 1e-300)) {
     m.s = {-std::numeric_limits<double>::infinity(), 0.0};
     m.damping_ratio = 1.0;
     return m;
@@ -64,7 +65,7 @@ Verdict verdict_of(const std::vector<Mode>& modes) {
   bool uncertain = false;
   for (const Mode& m : modes) {
     if (m.structural) continue;
-    const double margin = 1.0 - std::abs(m.z);
+    const double margin = 1.0 - m.abs_z;
     if (margin < -m.error) return Verdict::kUnstable;
     if (margin <= m.error) uncertain = true;
   }
@@ -74,13 +75,13 @@ Verdict verdict_of(const std::vector<Mode>& modes) {
 void summarise(Spectrum& sp) {
   std::stable_sort(sp.modes.begin(), sp.modes.end(), [](const Mode& x, const Mode& y) {
     if (x.structural != y.structural) return !x.structural;
-    return std::abs(x.z) > std::abs(y.z);
+    return x.abs_z > y.abs_z;
   });
   sp.spectral_radius = 0.0;
   sp.min_damping_ratio = 1.0;
   for (const Mode& m : sp.modes) {
     if (m.structural) continue;
-    sp.spectral_radius = std::max(sp.spectral_radius, std::abs(m.z));
+    sp.spectral_radius = std::max(sp.spectral_radius, m.abs_z);
     sp.min_damping_ratio = std::min(sp.min_damping_ratio, m.damping_ratio);
   }
   sp.verdict = verdict_of(sp.modes);

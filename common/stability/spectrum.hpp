@@ -12,6 +12,7 @@ namespace teleop::stability {
 
 struct Mode {
   std::complex<double> z{};
+  double abs_z{0.0};
   bool structural{false};     // identically zero by the model's structure; s and zeta undefined
   std::complex<double> s{};   // ln(z)/T
   double damping_ratio{1.0};  // -Re(s)/|s|

@@ -12,8 +12,8 @@ struct ZohPlant {
   Eigen::Vector2d gamma{Eigen::Vector2d::Zero()};
 };
 
-// Computed through the 3x3 augmented matrix exponential exp([[A, B], [0, 0]] T), by a Taylor
-// series with scaling and squaring in long double: no closed form that divides by the
+// Computed as exp(A T) and T phi1(A T) B (the augmented exponential exp([[A, B], [0, 0]] T)) by
+// a Taylor series with scaling and squaring in long double: no closed form that divides by the
 // difference of the poles, so it stays accurate through critical damping and as T -> 0.
 [[nodiscard]] ZohPlant discretize_plant(double mass_kg, double damping_Ns_per_m,
                                         double stiffness_N_per_m, double period_s);
