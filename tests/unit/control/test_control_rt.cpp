@@ -1,0 +1,228 @@
+// RT safety (DESIGN §4): the control steps make no allocation. This binary interposes the C
+// allocator itself (an operator new counter would miss C allocations, and libstdc++'s
+// operator new ends in malloc anyway): malloc & co forward to glibc's __libc_* entry points
+// and count calls while a window is open. AddressSanitizer replaces malloc itself, so under
+// ASan the interposition is not compiled and the tests skip.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstddef>
+#include <cstdlib>
+#include <limits>
+#include <new>
+#include <vector>
+
+#include "common/control/force_loop_controller.hpp"
+#include "common/control/master_law.hpp"
+#include "common/control/slave_law.hpp"
+
+#if defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define TELEOP_TEST_ASAN 1
+#endif
+#endif
+#if defined(__SANITIZE_ADDRESS__) && !defined(TELEOP_TEST_ASAN)
+#define TELEOP_TEST_ASAN 1
+#endif
+#ifndef TELEOP_TEST_ASAN
+#define TELEOP_TEST_ASAN 0
+#endif
+
+namespace {
+
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_calls{0};
+
+[[maybe_unused]] inline void count_call() noexcept {
+  if (g_counting.load(std::memory_order_relaxed)) g_calls.fetch_add(1, std::memory_order_relaxed);
+}
+
+void open_window() noexcept {
+  g_calls.store(0);
+  g_counting.store(true);
+}
+
+long close_window() noexcept {
+  g_counting.store(false);
+  return g_calls.load();
+}
+
+}  // namespace
+
+#if !TELEOP_TEST_ASAN
+extern "C" {
+void* __libc_malloc(std::size_t size) noexcept;
+void* __libc_calloc(std::size_t count, std::size_t size) noexcept;
+void* __libc_realloc(void* ptr, std::size_t size) noexcept;
+void __libc_free(void* ptr) noexcept;
+void* __libc_memalign(std::size_t alignment, std::size_t size) noexcept;
+
+void* malloc(std::size_t size) noexcept {
+  count_call();
+  return __libc_malloc(size);
+}
+void* calloc(std::size_t count, std::size_t size) noexcept {
+  count_call();
+  return __libc_calloc(count, size);
+}
+void* realloc(void* ptr, std::size_t size) noexcept {
+  count_call();
+  return __libc_realloc(ptr, size);
+}
+void free(void* ptr) noexcept {
+  count_call();
+  __libc_free(ptr);
+}
+void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
+  count_call();
+  return __libc_memalign(alignment, size);
+}
+void* memalign(std::size_t alignment, std::size_t size) noexcept {
+  count_call();
+  return __libc_memalign(alignment, size);
+}
+int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
+  count_call();
+  if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
+  void* p = __libc_memalign(alignment, size);
+  if (p == nullptr) return ENOMEM;
+  *out = p;
+  return 0;
+}
+}  // extern "C"
+#endif
+
+namespace teleop::control {
+namespace {
+
+constexpr int kSteps = 10000;
+constexpr double kT = 1e-3;
+
+// AddressSanitizer replaces malloc itself: the sanitizer build leaves this binary out
+// (tests/unit/control/CMakeLists.txt) rather than letting it skip silently.
+static_assert(!TELEOP_TEST_ASAN, "the allocation-interposition test needs a non-ASan build");
+#define SKIP_UNDER_ASAN() \
+  do {                    \
+  } while (false)
+
+// Every feature on, so every branch of the step runs: fixtures, filter, force channel,
+// limits, clutch fades.
+[[nodiscard]] LawParams busy_params() {
+  LawParams p;
+  p.period_s = kT;
+  p.gains = {
+      .kpm = 400.0, .kps = 500.0, .kdm = 4.0, .kds = 5.0, .kvm = 1.0, .kvs = 1.5, .kfm = 0.5};
+  p.scaling = {.position = 1.5, .force = 0.8};
+  p.master_fixture = {800.0, 0.01};
+  p.slave_fixture = {1000.0, 0.015};
+  p.velocity_cutoff_hz = 200.0;
+  p.master_actuator = {4.0, 2000.0};
+  p.slave_actuator = {6.0, 3000.0};
+  p.slave_limits = {-0.03, 0.03, 0.5, 5.0};
+  p.clutch_fade_s = 0.02;
+  return p;
+}
+
+TEST(RealTime, CounterSeesAllocations) {
+  SKIP_UNDER_ASAN();
+  // Through volatile pointers, so the compiler cannot pair up and elide the calls.
+  void* (*volatile do_malloc)(std::size_t) = &std::malloc;
+  void (*volatile do_free)(void*) = &std::free;
+  open_window();
+  void* p = do_malloc(64);
+  do_free(p);
+  const long calls = close_window();
+  EXPECT_EQ(calls, 2);
+
+  // libstdc++'s operator new ends in malloc, so C++ allocations are counted too. (Called
+  // through pointers: the compiler may elide a new-expression paired with its delete.)
+  void* (*volatile do_new)(std::size_t) = static_cast<void* (*)(std::size_t)>(&::operator new);
+  void (*volatile do_delete)(void*) noexcept =
+      static_cast<void (*)(void*) noexcept>(&::operator delete);
+  open_window();
+  do_delete(do_new(100));
+  EXPECT_EQ(close_window(), 2);
+}
+
+TEST(RealTime, MasterAndSlaveStepsDoNotAllocate) {
+  SKIP_UNDER_ASAN();
+  const LawParams params = busy_params();
+  MasterLaw master(params);
+  SlaveLaw slave(params);
+  std::vector<double> xm(kSteps);
+  std::vector<double> xs(kSteps);
+  for (std::size_t k = 0; k < xm.size(); ++k) {
+    const double t = static_cast<double>(k) * kT;
+    xm[k] = 0.02 * std::sin(2.0 * 3.14159 * 1.3 * t);
+    xs[k] = 0.028 * std::sin(2.0 * 3.14159 * 1.3 * (t - 0.01)) + 0.01 * std::sin(50.0 * t);
+  }
+  PeerState to_slave;
+  PeerState to_master;
+  double sink = 0.0;
+  int flags = 0;
+
+  open_window();
+  for (int k = 0; k < kSteps; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k);
+    if (k % 1000 == 300) master.set_clutch(true);
+    if (k % 1000 == 700) master.set_clutch(false);
+    double xm_k = xm[i];
+    if (k == 9500) xm_k = std::numeric_limits<double>::quiet_NaN();  // fault path
+    if (k == 9600) {
+      master.reset();
+      slave.reset(xs[i]);
+    }
+    PeerState link_to_master = to_master;
+    if (k % 2000 > 1900) link_to_master.valid = false;  // link loss path
+    const Command cm = master.step(xm_k, link_to_master);
+    const Command cs = slave.step(xs[i], 1.0 + 0.1 * xs[i], to_slave);
+    to_slave = master.peer_state();
+    to_master = slave.peer_state();
+    sink += cm.force_N + cs.force_N;
+    flags += cm.flags.saturated + cm.flags.rate_limited + cs.flags.limit_violation +
+             cs.flags.reference_limited + cm.flags.input_fault;
+  }
+  const long calls = close_window();
+
+  EXPECT_EQ(calls, 0) << "allocator calls in " << kSteps << " master + slave steps";
+  EXPECT_TRUE(std::isfinite(sink));
+  EXPECT_GT(flags, 0);  // the limit and fault paths did run
+}
+
+TEST(RealTime, ForceLoopStepsDoNotAllocate) {
+  SKIP_UNDER_ASAN();
+  ForceLoopSettings s;
+  s.period_s = kT;
+  s.kp = 5.0;
+  s.ki = 20.0;
+  s.average_samples = 50;
+  s.limits = {3.0, 500.0};
+  ForceLoopController loop(s);
+  VirtualEnvironmentRenderer device(s, 200.0, {125.0, 0.1, 0.03});
+  std::vector<double> x(kSteps);
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    x[k] = 0.035 + 0.01 * std::sin(static_cast<double>(k) * 0.005);
+  }
+  double sink = 0.0;
+
+  open_window();
+  for (int k = 0; k < kSteps; ++k) {
+    const std::size_t i = static_cast<std::size_t>(k);
+    const double sensed = 125.0 * (x[i] - 0.03) * 0.9;
+    sink += loop.step(2.0 * std::sin(k * 0.01), sensed).force_N;
+    sink += device.step(x[i], sensed).force_N;
+    if (k == 5000) {
+      sink += loop.step(std::numeric_limits<double>::infinity(), 0.0).force_N;
+      loop.reset();
+    }
+  }
+  const long calls = close_window();
+
+  EXPECT_EQ(calls, 0) << "allocator calls in " << kSteps << " force-loop steps";
+  EXPECT_TRUE(std::isfinite(sink));
+}
+
+}  // namespace
+}  // namespace teleop::control
