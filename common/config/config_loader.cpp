@@ -1127,6 +1127,10 @@ ForceLoopParams to_force_loop_params(const LoadedConfig& config) {
   return params;
 }
 
+std::string field_origin(const LoadedConfig& config, std::string_view path) {
+  return origin_of(config, resolve(path));
+}
+
 std::vector<FieldAssignment> set_fields(const teleop::v1::SystemConfig& config) {
   std::vector<FieldAssignment> out;
   collect_set_fields(config, "", out);

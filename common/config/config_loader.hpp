@@ -86,6 +86,10 @@ void validate(const LoadedConfig& config);
 // The force-controlled device. Validates first, then requires the force_loop section.
 [[nodiscard]] ForceLoopParams to_force_loop_params(const LoadedConfig& config);
 
+// "FILE:LINE:COL" where the dotted field (or its nearest written section) is, or the `--set`
+// that set it: for error messages of code that reads sections this file does not check.
+[[nodiscard]] std::string field_origin(const LoadedConfig& config, std::string_view path);
+
 // One scalar of a configuration, in the syntax apply_override accepts.
 struct FieldAssignment {
   std::string path{};   // e.g. "gains.kps", "human.band.force_levels_N", "human.none"

@@ -1,0 +1,37 @@
+#include "common/device/haptic_device.hpp"
+
+#include "common/device/sim_device.hpp"
+
+namespace teleop::device {
+
+const char* to_string(StatusCode code) noexcept {
+  switch (code) {
+    case StatusCode::kOk:
+      return "ok";
+    case StatusCode::kInvalidArgument:
+      return "invalid argument";
+    case StatusCode::kNotConfigured:
+      return "not configured";
+    case StatusCode::kNotActive:
+      return "not active";
+    case StatusCode::kUnavailable:
+      return "unavailable";
+    case StatusCode::kFault:
+      return "fault";
+  }
+  return "unknown";
+}
+
+MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim) {
+  switch (kind) {
+    case DeviceKind::kSim:
+      return {std::make_unique<SimDevice>(sim), Status::Ok()};
+    case DeviceKind::kUsb:
+      return {nullptr, {StatusCode::kUnavailable, "usb device not built yet"}};
+  }
+  return {nullptr, {StatusCode::kInvalidArgument, "unknown device kind"}};
+}
+
+MakeDeviceResult make_device(DeviceKind kind) { return make_device(kind, SimDeviceConfig{}); }
+
+}  // namespace teleop::device

@@ -1,0 +1,91 @@
+// The one interface every haptic device implements (DESIGN §4), simulated or real; chosen by
+// configuration through make_device, never by scattered `if (sim)`.
+//
+// Lifecycle: configure() (setup: validate, allocate) -> activate() (start producing samples) ->
+// read()/write() at the loop rate -> deactivate(). read() and write() are RT-safe: no
+// allocation, no lock, no exception. Setup calls may allocate.
+//
+// Signs (DESIGN §2): positions along the device's arc, positive into the fixture/environment.
+// Command::force_N is the actuator's force on the device along +x. The master's law computes
+// F_am with F_h - F_am = (m s^2 + b s) X_m, so the master node writes force_N = -F_am; the slave
+// writes force_N = F_as. Sample::force_N is the load cell, compression positive: on the master
+// the human's force on the handle (F_h), on the slave the device's force on its environment (F_e).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+
+namespace teleop::device {
+
+enum class StatusCode : std::uint8_t {
+  kOk,
+  kInvalidArgument,
+  kNotConfigured,
+  kNotActive,
+  kUnavailable,
+  kFault,
+};
+
+// message points at a string literal or at storage owned by the device that returned it (valid
+// until that device's next setup call): copying a Status never allocates.
+struct [[nodiscard]] Status {
+  StatusCode code{StatusCode::kOk};
+  const char* message{""};
+
+  [[nodiscard]] bool ok() const noexcept { return code == StatusCode::kOk; }
+  [[nodiscard]] static Status Ok() noexcept { return {}; }
+};
+
+[[nodiscard]] const char* to_string(StatusCode code) noexcept;
+
+// Bits of Sample::flags.
+struct SampleFlags {
+  static constexpr std::uint32_t kLoadCellClipped = 1U << 0;     // force outside the cell's range
+  static constexpr std::uint32_t kAmplifierSaturated = 1U << 1;  // command clipped this period
+  static constexpr std::uint32_t kFault = 1U << 2;  // e-stop engaged or device fault: no force
+  static constexpr std::uint32_t kCommandRejected = 1U << 3;  // a non-finite command was refused
+};
+
+struct Sample {
+  std::uint64_t sequence{0};  // increments with every new sample
+  double time_s{0.0};         // device time of the sample
+  double position_m{0.0};     // as sensed (quantised by the encoder)
+  double force_N{0.0};        // load cell, compression positive
+  std::uint32_t flags{0};
+};
+
+struct Command {
+  double force_N{0.0};  // actuator force on the device along +x
+};
+
+class HapticDevice {
+ public:
+  virtual ~HapticDevice() = default;
+  HapticDevice() = default;
+  HapticDevice(const HapticDevice&) = delete;
+  HapticDevice& operator=(const HapticDevice&) = delete;
+
+  virtual Status configure() = 0;
+  virtual Status activate() = 0;
+  virtual Status deactivate() = 0;
+  // The latest sample. RT-safe.
+  virtual Status read(Sample& sample) noexcept = 0;
+  // Held until the next write. RT-safe.
+  virtual Status write(const Command& command) noexcept = 0;
+};
+
+enum class DeviceKind { kSim, kUsb };
+
+struct SimDeviceConfig;  // common/device/sim_device.hpp
+
+struct MakeDeviceResult {
+  std::unique_ptr<HapticDevice> device{};
+  Status status{};
+};
+
+// kSim: a SimDevice (unconfigured: call configure()). kUsb: an error until issue 4 adds it.
+[[nodiscard]] MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim);
+// kSim with the default SimDeviceConfig (a haptic-paddle slave in free space).
+[[nodiscard]] MakeDeviceResult make_device(DeviceKind kind);
+
+}  // namespace teleop::device

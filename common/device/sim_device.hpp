@@ -1,0 +1,105 @@
+// The simulated haptic device (DESIGN §1: simulation is the default device): the plant, its
+// sensors and actuator, and the human (master side) or environment (slave side) in the same
+// physics step.
+//
+// Time is the device's own: advance(period) steps the physics one control period with the last
+// written command and takes the next sample. The lockstep simulator calls it once per period; a
+// real-time node calls it from its device thread at the loop rate. Sensors are sampled at the end
+// of each period (the left limit, before the next command applies); read() returns that sample.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+#include "common/device/haptic_device.hpp"
+#include "common/sim/human.hpp"
+#include "common/sim/plant.hpp"
+#include "common/sim/sensors.hpp"
+
+namespace teleop::device {
+
+struct SimDeviceConfig {
+  std::chrono::nanoseconds period{std::chrono::milliseconds{1}};
+  // The haptic-paddle slave of Abbott-Okamura §4.1 (with its Delrin cap) in free space.
+  sim::PlantParams plant{DeviceParams{0.036, 0.49}};
+  // Master side: the human holding the handle. Its impedance replaces plant.human, and the load
+  // cell measures the human's force F_h; without a human it measures the environment force F_e.
+  std::optional<sim::HumanParams> human{};
+  sim::EncoderParams encoder{};
+  // false: Sample::position_m is the true position (the analyser's assumptions, no encoder).
+  bool quantize_position{true};
+  sim::LoadCellParams load_cell{};
+  sim::AmplifierParams amplifier{};
+  std::uint64_t seed{1};
+  double initial_position_m{0.0};
+
+  // The paper's master paddle (0.040 kg, 0.41 Ns/m) held by a human.
+  [[nodiscard]] static SimDeviceConfig paddle_master(sim::HumanParams human);
+  // The paper's slave paddle (0.036 kg, 0.49 Ns/m) touching an environment.
+  [[nodiscard]] static SimDeviceConfig paddle_slave(sim::Environment environment);
+};
+
+// Ground truth for logging and tests (never available from a real device).
+struct SimTruth {
+  double time_s{0.0};
+  sim::PlantState state{};
+  sim::PlantOutput output{};
+  double applied_force_N{0.0};                   // after the amplifier, over the last period
+  HumanImpedance human{};                        // the impedance in effect over the last period
+  std::optional<std::size_t> malicious_index{};  // the malicious user's schedule position
+};
+
+class SimDevice final : public HapticDevice {
+ public:
+  explicit SimDevice(SimDeviceConfig config);
+
+  // Builds plant, sensors and human from the configuration (errors name the field), resets
+  // time to 0, the state to the initial position and the noise to the seed.
+  Status configure() override;
+  // Enables the amplifier and publishes a sample of the current state.
+  Status activate() override;
+  // Disables the amplifier (0 N); the physics keeps running under advance().
+  Status deactivate() override;
+  Status read(Sample& sample) noexcept override;
+  // A non-finite command is refused (kInvalidArgument, 0 N held, flagged in the next sample).
+  Status write(const Command& command) noexcept override;
+
+  // One control period of physics with the held command, then a new sample. RT-safe at the
+  // configured period; another period rebuilds the propagators first (slow, still no
+  // allocation). Needs configure(); inactive or e-stopped, the actuator gives 0 N.
+  Status advance(std::chrono::nanoseconds period) noexcept;
+
+  // The simulated e-stop button: while engaged the actuator gives 0 N and samples carry kFault.
+  void set_estop(bool engaged) noexcept { estop_ = engaged; }
+
+  [[nodiscard]] SimTruth truth() const noexcept;
+  [[nodiscard]] const SimDeviceConfig& config() const noexcept { return config_; }
+  // Valid after configure().
+  [[nodiscard]] const sim::Plant& plant() const { return *plant_; }
+
+ private:
+  enum class Stage { kUnconfigured, kInactive, kActive };
+
+  void take_sample(std::uint32_t flags) noexcept;
+
+  SimDeviceConfig config_;
+  Stage stage_{Stage::kUnconfigured};
+  std::optional<sim::Plant> plant_{};
+  std::optional<sim::Human> human_{};
+  std::optional<sim::Encoder> encoder_{};
+  std::optional<sim::LoadCell> load_cell_{};
+  std::optional<sim::Amplifier> amplifier_{};
+  std::chrono::nanoseconds time_{0};
+  sim::AmplifierOutput command_{};
+  bool command_rejected_{false};
+  bool estop_{false};
+  double applied_force_N_{0.0};
+  HumanImpedance current_human_{};
+  std::optional<std::size_t> malicious_index_{};
+  Sample sample_{};
+  std::string error_{};
+};
+
+}  // namespace teleop::device

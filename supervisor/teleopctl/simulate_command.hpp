@@ -1,0 +1,28 @@
+// `teleopctl simulate`: play a scene on simulated devices with the nodes' control code.
+#pragma once
+
+#include <iosfwd>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace teleop::ctl {
+
+struct SimulateOptions {
+  std::string scene_path{};
+  std::vector<std::string> overrides{};
+  std::optional<double> duration_s{};
+  std::optional<unsigned long long> seed{};
+  std::optional<std::string> out_path{};   // CSV time series
+  std::optional<std::string> plot_path{};  // SVG of positions and forces
+  bool json{false};
+};
+
+[[nodiscard]] SimulateOptions parse_simulate_args(const std::vector<std::string>& args);
+[[nodiscard]] std::string simulate_usage();
+
+// Exit codes: 0 ran and no sustained oscillation, 1 bad scene or I/O, 2 usage, 3 a sustained
+// oscillation was detected, 5 a control law latched a fault.
+int run_simulate(const SimulateOptions& options, std::ostream& out, std::ostream& err);
+
+}  // namespace teleop::ctl
