@@ -182,11 +182,13 @@ scene::ForceDeviceSetup to_force_device(const LoadedConfig& config, bool ideal, 
   } else {
     const v1::PositionSinusoid& p = f.sinusoid();
     const double w = 2.0 * std::numbers::pi * p.frequency_hz();
-    hand = sim::ForceProfile::sinusoid(p.offset_m(), p.amplitude_m(), p.frequency_hz());
-    // k (o + A sin wt) + b A w cos wt = k o + A sqrt(k^2 + (b w)^2) sin(wt + atan2(b w, k)).
-    push = sim::ForceProfile::sinusoid(k_grip * p.offset_m(),
-                                       p.amplitude_m() * std::hypot(k_grip, b_grip * w),
-                                       p.frequency_hz(), std::atan2(b_grip * w, k_grip));
+    hand =
+        sim::ForceProfile::sinusoid(p.offset_m(), p.amplitude_m(), p.frequency_hz(), p.phase_rad());
+    // k (o + A sin(wt + f)) + b A w cos(wt + f) = k o + A sqrt(k^2 + (b w)^2)
+    // sin(wt + f + atan2(b w, k)).
+    push = sim::ForceProfile::sinusoid(
+        k_grip * p.offset_m(), p.amplitude_m() * std::hypot(k_grip, b_grip * w), p.frequency_hz(),
+        p.phase_rad() + std::atan2(b_grip * w, k_grip));
   }
   out.hand_position_m = hand;
   out.device.plant.device = {fl.mass_kg, fl.damping_Ns_per_m};

@@ -134,3 +134,79 @@ TEST(Teleopctl, UsageErrorsExitWith2) {
 }
 
 }  // namespace
+
+namespace {
+
+std::string slurp(const std::string& path) {
+  std::ifstream f(path);
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+std::string scene(const char* name) {
+  return std::string(TELEOP_SOURCE_DIR) + "/examples/scenes/" + name;
+}
+
+TEST(TeleopctlSimulate, StableAndUnstableSlaveFixturesAsTheAnalyserSays) {
+  // Scene 3 at 1500 N/m (below the 2116 N/m band limit at 500 Hz) and 4000 N/m (above it).
+  const CliResult stable =
+      run("simulate " + scene("paddles_slave_fixture_stable.textproto") + " --json");
+  ASSERT_EQ(stable.exit_code, 0) << stable.out;
+  const auto s = nlohmann::json::parse(stable.out);
+  EXPECT_FALSE(s["oscillation"]["detected"].get<bool>());
+  EXPECT_EQ(s["predicted"]["verdict"], "stable");
+  const CliResult unstable =
+      run("simulate " + scene("paddles_slave_fixture_unstable.textproto") + " --json");
+  ASSERT_EQ(unstable.exit_code, 3) << unstable.out;
+  const auto u = nlohmann::json::parse(unstable.out);
+  EXPECT_TRUE(u["oscillation"]["detected"].get<bool>());
+  EXPECT_EQ(u["predicted"]["verdict"], "unstable");
+  EXPECT_GT(u["oscillation"]["amplitude_m"].get<double>(), 2e-4);  // well above two counts
+}
+
+TEST(TeleopctlSimulate, SameSeedSameBytesOtherSeedOtherNoise) {
+  const std::string a = ::testing::TempDir() + "a.csv";
+  const std::string b = ::testing::TempDir() + "b.csv";
+  const std::string c = ::testing::TempDir() + "c.csv";
+  const std::string sc = scene("force_free_motion.textproto");
+  ASSERT_EQ(run("simulate " + sc + " --duration 1 --seed 3 --out " + a).exit_code, 0);
+  ASSERT_EQ(run("simulate " + sc + " --duration 1 --seed 3 --out " + b).exit_code, 0);
+  ASSERT_EQ(run("simulate " + sc + " --duration 1 --seed 4 --out " + c).exit_code, 0);
+  const std::string ta = slurp(a);
+  EXPECT_GT(ta.size(), 1000u);
+  EXPECT_EQ(ta, slurp(b));
+  EXPECT_NE(ta, slurp(c));  // the load-cell noise differs
+  EXPECT_EQ(ta.substr(0, ta.find('\n')),
+            "time_s,device_position_m,hand_position_m,desired_force_N,felt_force_N,"
+            "sensed_force_N,average_force_N,actuator_force_N");
+}
+
+TEST(TeleopctlSimulate, ClosedLoopForceControlCutsTheParasiticForce) {
+  // Vlachos-Papadopoulos Table I, scenario 1: open loop about +-0.6 N of parasitic force in
+  // free motion (the scene's motion is chosen for that: 0.25 kg, 5 Ns/m and 0.1 N friction
+  // on a 15 mm, 1 Hz swing give b v + m a + F_c = 0.47 + 0.15 + 0.1 N at most), closed loop
+  // K_p = 5 cuts it by at least 75 % (paper: 83 %).
+  const std::string sc = scene("force_free_motion.textproto");
+  const auto open =
+      nlohmann::json::parse(run("simulate " + sc + " --json --set force_loop.kp=0").out);
+  const auto closed = nlohmann::json::parse(run("simulate " + sc + " --json").out);
+  const double p_open = open["parasitic_force_peak_N"].get<double>();
+  const double p_closed = closed["parasitic_force_peak_N"].get<double>();
+  EXPECT_NEAR(p_open, 0.6, 0.1);
+  EXPECT_LE(p_closed, 0.25 * p_open);
+  // Scenario 2: pushed 1 cm into 125 N/m tissue; closed loop halves the force error at least.
+  const std::string tissue = scene("force_tissue.textproto");
+  const auto t_open =
+      nlohmann::json::parse(run("simulate " + tissue + " --json --set force_loop.kp=0").out);
+  const auto t_closed = nlohmann::json::parse(run("simulate " + tissue + " --json").out);
+  EXPECT_LE(t_closed["force_error_rms_N"].get<double>(),
+            0.5 * t_open["force_error_rms_N"].get<double>());
+  EXPECT_NEAR(t_closed["max_penetration_slave_m"].get<double>(), 0.01, 0.002);
+}
+
+TEST(TeleopctlSimulate, BadSceneNamesTheField) {
+  const CliResult r = run("simulate " + example("paddles.textproto"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.out.find("scene.duration_s"), std::string::npos) << r.out;
+}
+
+}  // namespace

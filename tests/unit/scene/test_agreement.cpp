@@ -1,0 +1,81 @@
+// The simulator and the analyser agree (issue 3 "Proof"): random teleoperators, simulated
+// under the analyser's assumptions from their equilibrium inside the fixtures, settle when the
+// predicted minimum damping ratio is above 0.02 and oscillate when it is below -0.02. The
+// expected verdicts come from the stability engine, which the stability tests check against
+// the papers and an independent 50-digit reference; the simulator shares no code with it.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+#include "agreement.hpp"
+
+namespace teleop::scene::testing {
+namespace {
+
+TEST(Agreement, SimulatorSettlesOrOscillatesAsTheAnalyserPredicts) {
+  std::mt19937 rng(20261121);
+  int outside = 0;
+  int agree = 0;
+  int stable_cases = 0;
+  int unstable_cases = 0;
+  int inside_band = 0;
+  for (int i = 0; i < 200; ++i) {
+    const Case c = random_case(rng, true);
+    const Outcome o = run_case(c);
+    const double z = c.min_damping_ratio;
+    if (std::abs(z) <= 0.02) {
+      ++inside_band;
+      std::printf("  inside the band: case %d, zeta %.4f, sustained %d, amplitude %.3g m\n", i, z,
+                  o.sustained ? 1 : 0, o.amplitude_m);
+      continue;
+    }
+    ++outside;
+    const bool ok = z > 0.02 ? (o.settled && !o.sustained) : o.sustained;
+    (z > 0.02 ? stable_cases : unstable_cases) += 1;
+    agree += ok ? 1 : 0;
+    EXPECT_TRUE(ok) << "case " << i << ": predicted zeta " << z << ", spectral radius "
+                    << c.spectral_radius << ", simulated amplitude " << o.amplitude_m
+                    << " m, sustained " << o.sustained << ", duration " << c.setup.duration_s;
+  }
+  std::printf("agreement: %d of %d outside |zeta| <= 0.02 (%d stable, %d unstable), %d inside\n",
+              agree, outside, stable_cases, unstable_cases, inside_band);
+  // A campaign of only one kind would prove little.
+  EXPECT_GE(stable_cases, 40);
+  EXPECT_GE(unstable_cases, 40);
+}
+
+TEST(Agreement, TheDecayRateIsTheSpectralRadius) {
+  // Inside the fixtures and the analyser's assumptions the simulator is the analysed linear
+  // loop: the perturbation shrinks (or grows) like rho^k. Fit it over the run.
+  std::mt19937 rng(7);
+  int checked = 0;
+  for (int i = 0; i < 40 && checked < 10; ++i) {
+    Case c = random_case(rng, true);
+    if (c.min_damping_ratio < 0.05 || c.spectral_radius > 0.995) continue;
+    // Long enough for a decay by 1e8: late in the run only the slowest modes remain.
+    c.setup.duration_s = std::log(1e8) / -std::log(c.spectral_radius) / c.analysed.sample_rate_hz;
+    const SimulationResult r = simulate(c.setup);
+    const std::size_t n = r.columns.size();
+    const std::size_t rows = r.rows.size() / n;
+    // Slave deviation from the equilibrium, envelope over a window at 1/4 and 3/4 of the run.
+    auto envelope = [&](std::size_t from, std::size_t to) {
+      double m = 0.0;
+      for (std::size_t k = from; k < to; ++k) {
+        m = std::max(m, std::abs(r.rows[k * n + 2] - r.summary.equilibrium_slave_m));
+      }
+      return m;
+    };
+    const std::size_t w = rows / 10;
+    const std::size_t k1 = rows / 2;
+    const std::size_t k2 = 9 * rows / 10;
+    const double a1 = envelope(k1 - w / 2, k1 + w / 2);
+    const double a2 = envelope(k2 - w / 2, k2 + w / 2);
+    const double rho_fit = std::pow(a2 / a1, 1.0 / static_cast<double>(k2 - k1));
+    EXPECT_NEAR(rho_fit, c.spectral_radius, 1e-3) << "case " << i;
+    ++checked;
+  }
+  EXPECT_GE(checked, 5);
+}
+
+}  // namespace
+}  // namespace teleop::scene::testing
