@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# The README's first command: install dependencies, build, and run the main job.
+# The README's first command: install dependencies, build, and run the main job (the
+# analysis and simulation demo on simulated devices).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
@@ -14,3 +15,7 @@ echo "== maximum stable slave fixture stiffness against sample rate (the paper's
 echo
 echo "== the force-controlled device of Vlachos & Papadopoulos"
 ./build/supervisor/teleopctl/teleopctl analyze examples/force_loop.textproto --force-loop
+echo
+echo "== a slave fixture below and above its limit, simulated with the nodes' control law"
+./build/supervisor/teleopctl/teleopctl simulate examples/scenes/paddles_slave_fixture_stable.textproto
+./build/supervisor/teleopctl/teleopctl simulate examples/scenes/paddles_slave_fixture_unstable.textproto || true
