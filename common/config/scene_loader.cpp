@@ -78,6 +78,9 @@ sim::ForceProfile to_profile(const v1::ForceProfile& p, Checks& checks, const st
 // Sensors and actuator of one simulated side; the analyser's assumptions when ideal.
 void fill_hardware(const v1::Device& d, const std::string& path, bool ideal, std::uint64_t seed,
                    device::SimDeviceConfig& cfg, control::ActuatorLimits& limits, Checks& checks) {
+  if (d.kind() == v1::USB) {
+    checks.add(path + ".kind", "a scene runs on simulated devices: use SIM (or leave it out)");
+  }
   cfg.seed = seed;
   checks.non_negative(path + ".coulomb_friction_N", d.coulomb_friction_n());
   cfg.plant.coulomb_friction_N = ideal ? 0.0 : d.coulomb_friction_n();

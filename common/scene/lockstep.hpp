@@ -18,7 +18,8 @@ struct SimulationSummary {
   double max_penetration_slave_m{0.0};
   // Bilateral: alpha x_m - x_s. Force device: hand minus device position.
   double tracking_error_rms_m{0.0};
-  // Bilateral: F_h - beta F_e (transparency). Force device: F_des - F_h (the force felt).
+  // Bilateral: F_h - beta F_e (transparency). Force device: F_des - F_h (the force felt),
+  // in contact with the virtual tissue.
   double force_error_rms_N{0.0};
   double force_error_peak_N{0.0};
   // The largest force the operator feels where nothing should be felt: bilateral, slave in
