@@ -119,7 +119,9 @@ std::string render_svg(const Chart& chart) {
       svg += fmt::format("<path d=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"2\"/>\n", path,
                          s.colour);
     }
+    // Markers for scatter plots and short lines; a long time series is a line alone.
     for (const auto& [x, y] : s.points) {
+      if (s.line && s.points.size() > 200) break;
       if (!std::isfinite(x) || !std::isfinite(y)) continue;
       svg += fmt::format("<circle cx=\"{:.2f}\" cy=\"{:.2f}\" r=\"2.5\" fill=\"{}\"/>\n", px(x),
                          py(y), s.colour);
