@@ -243,7 +243,8 @@ scene::SceneSetup to_scene_setup(const LoadedConfig& config) {
   fill_hardware(c.slave().device(), "slave.device", out.ideal, out.seed + 1, out.slave,
                 out.law.slave_actuator, checks);
   out.slave.plant.environment = to_environment(s, checks);
-  if (c.slave().has_limits()) {
+  // The analyser's assumptions have no limits either.
+  if (c.slave().has_limits() && !out.ideal) {
     const v1::Limits& l = c.slave().limits();
     if (l.has_min_position_m()) out.law.slave_limits.min_position_m = l.min_position_m();
     if (l.has_max_position_m()) out.law.slave_limits.max_position_m = l.max_position_m();
@@ -287,6 +288,15 @@ scene::SceneSetup to_scene_setup(const LoadedConfig& config) {
     if (!s.human_force().has_constant()) {
       checks.add("scene.equilibrium_perturbation_m",
                  "an equilibrium start needs a constant scene.human_force");
+    }
+    // The equilibrium is solved for the loop alone: free space, a fixed (or no) human.
+    if (s.has_environment() && !s.environment().has_free()) {
+      checks.add("scene.equilibrium_perturbation_m",
+                 "an equilibrium start needs the slave in free space (scene.environment)");
+    }
+    if (out.teleop.human.kind == HumanKind::kBand) {
+      checks.add("scene.equilibrium_perturbation_m",
+                 "an equilibrium start needs human.fixed (or human.none)");
     }
     out.equilibrium_perturbation_m = s.equilibrium_perturbation_m();
     out.equilibrium_push_N = s.human_force().constant().force_n();

@@ -80,9 +80,7 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
   // The states each side sends: its position and its own filtered velocity, computed here
   // from the same samples so that both laws see the peer's state of the same sample (a zero
   // round trip is the paper's model); the configured round trip delays the master's.
-  control::VelocityEstimator master_velocity(t_s, law.velocity_cutoff_hz);
   control::VelocityEstimator slave_velocity(t_s, law.velocity_cutoff_hz);
-  master_velocity.reset(master_cfg.initial_position_m);
   slave_velocity.reset(slave_cfg.initial_position_m);
   const int delay = s.teleop.round_trip_delay_samples;
   std::vector<control::PeerState> in_flight(
@@ -114,14 +112,15 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
     (void)master.read(ms);
     (void)slave.read(ss);
     const double fe_measured = ss.force_N;
-    const control::PeerState master_state{ms.position_m, master_velocity.step(ms.position_m), 0.0,
-                                          master_law.clutch_engaged(), true};
+    // The slave's state of this sample (its position and filtered velocity, as its law computes
+    // them) reaches the master at once; the master's own outgoing state, with its clutch offset
+    // and validity, goes through the round trip to the slave.
     const control::PeerState slave_state{ss.position_m, slave_velocity.step(ss.position_m),
-                                         fe_measured, false, true};
-    in_flight[static_cast<std::size_t>(k % (delay + 1))] = master_state;
+                                         fe_measured, false, !slave_law.faulted()};
+    const control::Command cm = master_law.step(ms.position_m, slave_state);
+    in_flight[static_cast<std::size_t>(k % (delay + 1))] = master_law.peer_state();
     const control::PeerState& master_delayed =
         in_flight[static_cast<std::size_t>((k + 1) % (delay + 1))];
-    const control::Command cm = master_law.step(ms.position_m, slave_state);
     const control::Command cs = slave_law.step(ss.position_m, fe_measured, master_delayed);
     sum.fault = sum.fault || cm.flags.input_fault || cs.flags.input_fault;
     // The master is pushed by -F_am (F_h - F_am = Z_m X_m); the slave by +F_as.
@@ -149,8 +148,9 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
     track_sq += track * track;
     force_sq += ferr * ferr;
     sum.force_error_peak_N = std::max(sum.force_error_peak_N, std::abs(ferr));
-    const bool slave_free =
-        !st.output.in_contact && !(sf.stiffness_N_per_m > 0.0 && xs > sf.position_m);
+    const bool slave_free = !st.output.in_contact &&
+                            !(sf.stiffness_N_per_m > 0.0 && xs > sf.position_m) &&
+                            !(mf.stiffness_N_per_m > 0.0 && xm > mf.position_m);
     if (slave_free) sum.parasitic_force_peak_N = std::max(sum.parasitic_force_peak_N, std::abs(fh));
     rec.add(k, {mt.time_s, xm, xs, ms.position_m, ss.position_m, cm.force_N, cs.force_N, fh, fe});
   }
@@ -160,12 +160,13 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
   sum.tracking_error_rms_m = rms(track_sq, steps);
   sum.force_error_rms_N = rms(force_sq, steps);
   const double window = std::min(1.0, 0.25 * sum.duration_s);
-  // A limit cycle of a count or two of the encoder is quantisation, not instability.
+  // A limit cycle of a count or two of the encoder (peak to peak) is quantisation, not
+  // instability: the threshold is 1.5 counts of amplitude.
   auto threshold = [](const device::SimDeviceConfig& c) {
     if (!c.quantize_position) return 1e-5;
     const double count_m = 2.0 * std::numbers::pi * c.encoder.metres_per_radian /
                            (c.encoder.counts_per_rev * c.encoder.transmission_ratio);
-    return std::max(1e-5, 2.0 * count_m);
+    return std::max(1e-5, 1.5 * count_m);
   };
   sum.oscillation = detect_oscillation(xs_series, t_s, window, threshold(slave_cfg));
   sum.master_oscillation = detect_oscillation(xm_series, t_s, window, threshold(master_cfg));

@@ -10,22 +10,39 @@ namespace {
 struct WindowStats {
   double amplitude{0.0};
   double frequency_hz{0.0};
+  int crossings{0};
 };
 
+// Half the peak-to-peak about the window's least-squares line (so a drift is no oscillation),
+// and the frequency from the crossings of that line.
 WindowStats stats(std::span<const double> w, double period_s) {
   WindowStats out;
-  if (w.empty()) return out;
+  const auto n = static_cast<double>(w.size());
+  if (w.size() < 2) return out;
   double mean = 0.0;
+  double tmean = 0.5 * (n - 1.0);
   for (const double v : w) mean += v;
-  mean /= static_cast<double>(w.size());
-  const auto [lo, hi] = std::minmax_element(w.begin(), w.end());
-  out.amplitude = 0.5 * (*hi - *lo);
-  int crossings = 0;
-  for (std::size_t i = 1; i < w.size(); ++i) {
-    if ((w[i - 1] - mean) * (w[i] - mean) < 0.0) ++crossings;
+  mean /= n;
+  double sxy = 0.0;
+  double sxx = 0.0;
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    const double t = static_cast<double>(i) - tmean;
+    sxy += t * (w[i] - mean);
+    sxx += t * t;
   }
-  const double span_s = static_cast<double>(w.size()) * period_s;
-  out.frequency_hz = span_s > 0.0 ? 0.5 * crossings / span_s : 0.0;
+  const double slope = sxy / sxx;
+  double lo = 0.0;
+  double hi = 0.0;
+  double previous = 0.0;
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    const double r = w[i] - mean - slope * (static_cast<double>(i) - tmean);
+    lo = std::min(lo, r);
+    hi = std::max(hi, r);
+    if (i > 0 && previous * r < 0.0) ++out.crossings;
+    previous = r;
+  }
+  out.amplitude = 0.5 * (hi - lo);
+  out.frequency_hz = 0.5 * out.crossings / (n * period_s);
   return out;
 }
 
@@ -41,7 +58,9 @@ Oscillation detect_oscillation(std::span<const double> x, double period_s, doubl
   out.amplitude_m = last.amplitude;
   out.previous_amplitude_m = previous.amplitude;
   out.frequency_hz = last.frequency_hz;
-  out.detected = last.amplitude >= min_amplitude_m && last.amplitude >= 0.5 * previous.amplitude;
+  // At least two full cycles in the window: a slow swing driven by the operator is no buzz.
+  out.detected = last.amplitude >= min_amplitude_m && last.crossings >= 4 &&
+                 last.amplitude >= 0.5 * previous.amplitude;
   return out;
 }
 

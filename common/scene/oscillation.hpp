@@ -13,9 +13,10 @@ struct Oscillation {
   double previous_amplitude_m{0.0};  // the window before it
 };
 
-// Looks at the last `window_s` of `x` (sampled every `period_s`) and the window before it: a
-// sustained oscillation has at least `min_amplitude_m` in the last window and has not decayed
-// to less than half of the previous window's amplitude.
+// Looks at the last `window_s` of `x` (sampled every `period_s`) and the window before it, each
+// about its least-squares line: a sustained oscillation has at least `min_amplitude_m` and two
+// full cycles in the last window and has not decayed to less than half of the previous
+// window's amplitude.
 [[nodiscard]] Oscillation detect_oscillation(std::span<const double> x, double period_s,
                                              double window_s, double min_amplitude_m = 1e-5);
 

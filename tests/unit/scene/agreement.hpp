@@ -35,9 +35,18 @@ inline Case random_case(std::mt19937& rng, bool ideal) {
   p.slave_device = {log_uniform(0.02, 0.08), log_uniform(0.2, 1.0)};
   const double kp = log_uniform(100.0, 1500.0);
   const double kd = log_uniform(0.5, 8.0);
-  p.gains = {kp, kp * log_uniform(0.7, 1.4), kd, kd * log_uniform(0.7, 1.4), 0.0, 0.0, 0.0};
-  p.slave_fixture.stiffness_N_per_m = log_uniform(200.0, 12000.0);
-  p.master_fixture.stiffness_N_per_m = u(rng) < 0.3 ? log_uniform(200.0, 12000.0) : 0.0;
+  p.gains = {kp,
+             kp * log_uniform(0.7, 1.4),
+             kd,
+             kd * log_uniform(0.7, 1.4),
+             u(rng) < 0.3 ? log_uniform(0.05, 1.0) : 0.0,
+             u(rng) < 0.3 ? log_uniform(0.05, 1.0) : 0.0,
+             0.0};
+  p.scaling = {u(rng) < 0.3 ? log_uniform(0.5, 2.0) : 1.0,
+               u(rng) < 0.3 ? log_uniform(0.5, 2.0) : 1.0};
+  p.slave_fixture = {log_uniform(200.0, 12000.0), u(rng) < 0.5 ? 0.0 : 0.002 * u(rng)};
+  p.master_fixture = {u(rng) < 0.3 ? log_uniform(200.0, 12000.0) : 0.0,
+                      u(rng) < 0.5 ? 0.0 : 0.002 * u(rng)};
   p.velocity_cutoff_hz = u(rng) < 0.5 ? 0.0 : log_uniform(50.0, 300.0);
   p.round_trip_delay_samples = static_cast<int>(u(rng) * 3.0);
   p.human.kind = HumanKind::kFixed;

@@ -52,8 +52,16 @@ TEST(Agreement, TheDecayRateIsTheSpectralRadius) {
   for (int i = 0; i < 40 && checked < 10; ++i) {
     Case c = random_case(rng, true);
     if (c.min_damping_ratio < 0.05 || c.spectral_radius > 0.995) continue;
-    // Long enough for a decay by 1e8: late in the run only the slowest modes remain.
-    c.setup.duration_s = std::log(1e8) / -std::log(c.spectral_radius) / c.analysed.sample_rate_hz;
+    // Linear only while the perturbation stays inside the engaged fixtures.
+    const Equilibrium eq = static_equilibrium(c.analysed, c.setup.equilibrium_push_N);
+    const double margin = 10.0 * *c.setup.equilibrium_perturbation_m;
+    if ((eq.slave_fixture_engaged && eq.slave_m - c.analysed.slave_fixture.position_m < margin) ||
+        (eq.master_fixture_engaged &&
+         eq.master_m - c.analysed.master_fixture.position_m < margin)) {
+      continue;
+    }
+    // Long enough for a decay by 1e11: late in the run only the slowest modes remain.
+    c.setup.duration_s = std::log(1e11) / -std::log(c.spectral_radius) / c.analysed.sample_rate_hz;
     const SimulationResult r = simulate(c.setup);
     const std::size_t n = r.columns.size();
     const std::size_t rows = r.rows.size() / n;
@@ -65,13 +73,19 @@ TEST(Agreement, TheDecayRateIsTheSpectralRadius) {
       }
       return m;
     };
-    const std::size_t w = rows / 10;
-    const std::size_t k1 = rows / 2;
-    const std::size_t k2 = 9 * rows / 10;
+    // Windows of at least two periods of the slowest mode, so the envelope sees its peaks.
+    const stability::AnalysisResult a = stability::analyze(c.analysed);
+    const double angle = std::abs(std::arg(a.spectrum.modes.front().z));
+    const auto period = static_cast<std::size_t>(angle > 0.0 ? 2.0 * 3.14159265 / angle : 1.0);
+    const std::size_t w = std::max(rows / 10, 2 * period + 1);
+    const std::size_t k1 = std::max(rows / 2, w / 2 + 1);
+    const std::size_t k2 = std::min(9 * rows / 10, rows - w / 2 - 1);
+    if (k2 <= k1 + w) continue;
     const double a1 = envelope(k1 - w / 2, k1 + w / 2);
     const double a2 = envelope(k2 - w / 2, k2 + w / 2);
     const double rho_fit = std::pow(a2 / a1, 1.0 / static_cast<double>(k2 - k1));
-    EXPECT_NEAR(rho_fit, c.spectral_radius, 1e-3) << "case " << i;
+    // The envelope of a window locates its peak to half a period: a percent, not better.
+    EXPECT_NEAR(rho_fit, c.spectral_radius, 1e-2) << "case " << i;
     ++checked;
   }
   EXPECT_GE(checked, 5);
