@@ -9,6 +9,7 @@
 #include <boost/multiprecision/cpp_bin_float.hpp>
 #include <boost/multiprecision/cpp_complex.hpp>
 #include <complex>
+#include <utility>
 #include <vector>
 
 namespace teleop::reference {
@@ -85,15 +86,18 @@ struct LoopSpec {
   int delay{0};
 };
 
+// The low-pass pole r = e^{-2 pi fc T} and gain a = 1 - r (r = 0, a = 1: no filter).
+inline std::pair<Real, Real> velocity_filter(const LoopSpec& s) {
+  if (s.cutoff_hz <= 0) return {Real(0), Real(1)};
+  const Real r = exp(-2 * boost::math::constants::pi<Real>() * Real(s.cutoff_hz) * Real(s.t));
+  return {r, 1 - r};
+}
+
 // Characteristic polynomial of the bilateral loop (DESIGN §2): with V(z) = a(z-1)/(T(z-r)),
 // [D_m(z-r) + N_m P_mm] z^d [D_s(z-r) + N_s Q_ss] - N_m P_ms N_s Q_sm.
 inline Poly bilateral_polynomial(const LoopSpec& s) {
   const Real t(s.t);
-  Real r(0), a(1);
-  if (s.cutoff_hz > 0) {
-    r = exp(-2 * boost::math::constants::pi<Real>() * Real(s.cutoff_hz) * t);
-    a = 1 - r;
-  }
+  const auto [r, a] = velocity_filter(s);
   Poly nm, dm, ns, ds;
   plant_tf(zoh(Real(s.mm) + s.mh, Real(s.bm) + s.bh, Real(s.kh), t), nm, dm);
   plant_tf(zoh(Real(s.ms), Real(s.bs), Real(0), t), ns, ds);
@@ -113,11 +117,7 @@ inline Poly bilateral_polynomial(const LoopSpec& s) {
 // The master with its human and wall alone (the slave does not follow): D_m(z-r) + N_m P_mm.
 inline Poly master_polynomial(const LoopSpec& s) {
   const Real t(s.t);
-  Real r(0), a(1);
-  if (s.cutoff_hz > 0) {
-    r = exp(-2 * boost::math::constants::pi<Real>() * Real(s.cutoff_hz) * t);
-    a = 1 - r;
-  }
+  const auto [r, a] = velocity_filter(s);
   Poly nm, dm;
   plant_tf(zoh(Real(s.mm) + s.mh, Real(s.bm) + s.bh, Real(s.kh), t), nm, dm);
   const Poly zr = {-r, Real(1)};
@@ -130,11 +130,7 @@ inline Poly master_polynomial(const LoopSpec& s) {
 // The slave alone (master unactuated): D_s(z-r) + N_s Q_ss.
 inline Poly slave_polynomial(const LoopSpec& s) {
   const Real t(s.t);
-  Real r(0), a(1);
-  if (s.cutoff_hz > 0) {
-    r = exp(-2 * boost::math::constants::pi<Real>() * Real(s.cutoff_hz) * t);
-    a = 1 - r;
-  }
+  const auto [r, a] = velocity_filter(s);
   Poly ns, ds;
   plant_tf(zoh(Real(s.ms), Real(s.bs), Real(0), t), ns, ds);
   const Poly zr = {-r, Real(1)};
