@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "common/control/force_loop_controller.hpp"
+#include "common/control/master_law.hpp"
 
 namespace teleop::control {
 namespace {
@@ -214,6 +215,43 @@ TEST(VirtualEnvironmentRenderer, RendersTissueThroughTheLoop) {
   const ForceLoopCommand nan_position = device.step(std::numeric_limits<double>::quiet_NaN(), 0.0);
   EXPECT_TRUE(nan_position.input_fault);
   EXPECT_EQ(device.step(0.04, 1.0).force_N, 0.0);  // latched
+}
+
+}  // namespace
+}  // namespace teleop::control
+
+namespace teleop::control {
+namespace {
+
+TEST(ForceLoopInnerLoop, MasterCommandTrackedDespiteADisturbance) {
+  // The force loop as the master's inner loop: the master law's command is F_des, the handle's
+  // load cell senses what reaches the hand through a first-order transmission lag,
+  // F_s(k+1) = F_s(k) + g (F_in(k) - d - F_s(k)), with a parasitic force d (friction) the
+  // actuator must overcome. Steady state by hand: F_s = F_in - d with
+  // F_in = F_des + K_p (F_des - F_s), so F_s = F_des - d / (1 + K_p); open loop, F_des - d.
+  // The loop's pole is 1 - g (1 + K_p) = 0.4 for g = 0.1: it converges.
+  LawParams law;
+  law.period_s = 1e-3;
+  law.gains.kpm = 600.0;
+  law.clutch_fade_s = 0.0;
+  MasterLaw master(law);
+  master.reset(0.01);
+  const PeerState slave{0.0, 0.0, 0.0, false, true};
+  ForceLoopSettings settings;
+  settings.period_s = 1e-3;
+  settings.kp = 5.0;
+  settings.average_samples = 1;
+  ForceLoopController inner(settings);
+  const double d = 0.3;
+  double sensed = 0.0;
+  double desired = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    desired = master.step(0.01, slave).force_N;  // K_pm (x_m - x_s) = 600 * 0.01 = 6 N
+    const ForceLoopCommand c = inner.step(desired, sensed);
+    sensed += 0.1 * (c.force_N - d - sensed);
+  }
+  EXPECT_NEAR(desired, 6.0, 1e-12);
+  EXPECT_NEAR(sensed, 6.0 - d / 6.0, 1e-9);
 }
 
 }  // namespace
