@@ -1,0 +1,95 @@
+// NodeState on the wire: protobuf bytes <-> the plain record the nodes use, and the receiver's
+// guard against what a network does to packets (DESIGN §1: protobuf stops at transport/).
+// Runs on the link thread (protobuf allocates), never on the RT thread.
+#pragma once
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+
+namespace teleop::transport {
+
+enum class Role : std::uint8_t { kUnknown, kMaster, kSlave };
+
+// The plain record (trivially copyable, so it can cross to the RT thread by LatestValue).
+struct NodeStateRecord {
+  std::uint64_t session_id{0};
+  std::uint64_t sequence{0};
+  std::int64_t sample_time_ns{0};
+  std::uint64_t last_peer_sequence{0};
+  std::int64_t peer_age_ns{0};
+  Role role{Role::kUnknown};
+  int mode{0};  // teleop.v1.NodeMode value
+  double position_m{0.0};
+  double velocity_m_per_s{0.0};
+  double force_N{0.0};
+  bool fixture_in_contact{false};
+  double fixture_penetration_m{0.0};
+  double fixture_force_N{0.0};
+  bool clutched{false};
+  std::uint32_t fault_flags{0};
+};
+
+[[nodiscard]] std::string encode(const NodeStateRecord& record);
+
+// Why a received packet did not reach the control law.
+enum class Rejection : std::uint8_t {
+  kMalformed,  // not a NodeState, or truncated
+  kNonFinite,  // NaN or infinity in a physical field
+  kWrongRole,  // not from the expected peer role
+  kStale,      // sequence not newer than the last accepted one: duplicate, replay, reorder
+  kCount,
+};
+[[nodiscard]] const char* to_string(Rejection r);
+
+// Accepts only well-formed, finite, newer states from the expected role; a new session id
+// (the peer restarted) is accepted and reported, so the node can drop to safe and require a
+// new engagement. Counts every rejection by reason.
+class PeerStateFilter {
+ public:
+  explicit PeerStateFilter(Role expected_peer) : expected_(expected_peer) {}
+
+  struct Accepted {
+    NodeStateRecord record{};
+    bool new_session{false};  // the first state, or the peer restarted
+  };
+  [[nodiscard]] std::optional<Accepted> accept(std::string_view bytes);
+
+  [[nodiscard]] std::uint64_t rejected(Rejection r) const {
+    return rejected_[static_cast<std::size_t>(r)];
+  }
+  [[nodiscard]] std::uint64_t accepted() const { return accepted_; }
+
+ private:
+  Role expected_;
+  std::optional<std::uint64_t> session_{};
+  std::uint64_t last_sequence_{0};
+  std::uint64_t accepted_{0};
+  std::array<std::uint64_t, static_cast<std::size_t>(Rejection::kCount)> rejected_{};
+};
+
+// Round trip from echoed sequence numbers, without synchronised clocks: remember when each of
+// our sequences was sent; when the peer echoes one with the time it held it, the round trip is
+// now - sent - held. Fixed-size ring: no allocation.
+class RoundTripEstimator {
+ public:
+  static constexpr std::size_t kHistory = 1024;
+
+  void sent(std::uint64_t sequence, std::chrono::nanoseconds at) noexcept;
+  // The round trip this echo shows, if the echoed sequence is still in the history.
+  [[nodiscard]] std::optional<std::chrono::nanoseconds> echoed(
+      std::uint64_t sequence, std::chrono::nanoseconds peer_held,
+      std::chrono::nanoseconds now) const noexcept;
+  // Rounded up to whole periods, as the stability model takes it (DESIGN §2).
+  [[nodiscard]] static int samples(std::chrono::nanoseconds round_trip,
+                                   std::chrono::nanoseconds period) noexcept;
+
+ private:
+  std::array<std::uint64_t, kHistory> sequence_{};
+  std::array<std::int64_t, kHistory> sent_ns_{};
+};
+
+}  // namespace teleop::transport
