@@ -1,0 +1,114 @@
+#include "common/node/node_state_machine.hpp"
+
+#include <algorithm>
+
+namespace teleop::node {
+
+const char* to_string(Mode m) noexcept {
+  switch (m) {
+    case Mode::kDisarmed:
+      return "disarmed";
+    case Mode::kArmed:
+      return "armed";
+    case Mode::kAligning:
+      return "aligning";
+    case Mode::kEngaged:
+      return "engaged";
+    case Mode::kClutched:
+      return "clutched";
+    case Mode::kSafe:
+      return "safe";
+    case Mode::kFault:
+      return "fault";
+  }
+  return "fault";
+}
+
+void NodeStateMachine::go(Mode m, const char* why, std::chrono::nanoseconds now) noexcept {
+  if (m == Mode::kEngaged && mode_ != Mode::kEngaged) engaged_at_ = now;
+  mode_ = m;
+  reason_ = why;
+}
+
+CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
+  const bool peer_fresh = in.peer_seen && in.peer_age <= params_.peer_timeout;
+  // Safety first, from any state: e-stop and faults win over everything else.
+  if (in.command == Command::kEStop && mode_ != Mode::kFault) {
+    go(Mode::kSafe, "e-stop", in.now);
+  } else if ((in.device_fault || in.law_fault) && mode_ != Mode::kFault) {
+    go(Mode::kFault, in.device_fault ? "device fault" : "control law fault", in.now);
+  } else {
+    switch (mode_) {
+      case Mode::kDisarmed:
+        if (in.command == Command::kArm) go(Mode::kArmed, "arm", in.now);
+        break;
+      case Mode::kArmed:
+        if (in.command == Command::kEngage) {
+          if (peer_fresh) {
+            go(Mode::kAligning, "engage: aligning", in.now);
+          } else {
+            reason_ = "engage refused: no fresh peer state";
+          }
+        } else if (in.command == Command::kDisengage) {
+          go(Mode::kDisarmed, "disarm", in.now);
+        }
+        break;
+      case Mode::kAligning:
+        if (!peer_fresh) {
+          go(Mode::kSafe, "peer timeout", in.now);
+        } else if (in.command == Command::kDisengage) {
+          go(Mode::kArmed, "disengage", in.now);
+        } else if (in.aligned) {
+          go(Mode::kEngaged, "aligned", in.now);
+        }
+        break;
+      case Mode::kEngaged:
+        if (!peer_fresh) {
+          go(Mode::kSafe, "peer timeout", in.now);
+        } else if (in.command == Command::kDisengage) {
+          go(Mode::kArmed, "disengage", in.now);
+        } else if (in.command == Command::kClutch) {
+          go(Mode::kClutched, "clutch", in.now);
+        }
+        break;
+      case Mode::kClutched:
+        if (!peer_fresh) {
+          go(Mode::kSafe, "peer timeout", in.now);
+        } else if (in.command == Command::kDisengage) {
+          go(Mode::kArmed, "disengage", in.now);
+        } else if (in.command == Command::kUnclutch) {
+          go(Mode::kEngaged, "unclutch", in.now);
+        }
+        break;
+      case Mode::kSafe:
+        // Latched: only an operator's clear leaves it, and then to disarmed (re-engaging
+        // needs arm, engage and alignment again).
+        if (in.command == Command::kClear) go(Mode::kDisarmed, "cleared", in.now);
+        break;
+      case Mode::kFault:
+        if (in.command == Command::kClear) {
+          if (in.device_fault || in.law_fault) {
+            reason_ = "clear refused: fault still present";
+          } else {
+            go(Mode::kDisarmed, "cleared", in.now);
+          }
+        }
+        break;
+    }
+  }
+
+  CycleOutputs out;
+  out.mode = mode_;
+  out.reason = reason_;
+  out.actuators_enabled =
+      mode_ == Mode::kAligning || mode_ == Mode::kEngaged || mode_ == Mode::kClutched;
+  out.centring = mode_ == Mode::kAligning;
+  if (mode_ == Mode::kEngaged || mode_ == Mode::kClutched) {
+    const double ramp = static_cast<double>(params_.engage_ramp.count());
+    const double since = static_cast<double>((in.now - engaged_at_).count());
+    out.coupling_weight = ramp <= 0.0 ? 1.0 : std::clamp(since / ramp, 0.0, 1.0);
+  }
+  return out;
+}
+
+}  // namespace teleop::node

@@ -1,0 +1,66 @@
+// A node's operating state (issue 4 "Node states and commands"): disarmed -> armed -> aligning
+// -> engaged, plus clutched, safe and fault. Pure logic stepped once per cycle with the
+// cycle's time and inputs, so tests drive it with a fake clock. RT-safe: no allocation, no
+// lock, no exception.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+
+namespace teleop::node {
+
+enum class Mode : std::uint8_t { kDisarmed, kArmed, kAligning, kEngaged, kClutched, kSafe, kFault };
+enum class Command : std::uint8_t {
+  kNone,
+  kArm,
+  kEngage,
+  kDisengage,
+  kClutch,
+  kUnclutch,
+  kClear,
+  kEStop
+};
+
+[[nodiscard]] const char* to_string(Mode m) noexcept;
+
+struct StateMachineParams {
+  std::chrono::nanoseconds peer_timeout{std::chrono::milliseconds(50)};
+  std::chrono::nanoseconds engage_ramp{std::chrono::milliseconds(500)};
+};
+
+struct CycleInputs {
+  std::chrono::nanoseconds now{0};
+  Command command{Command::kNone};
+  std::chrono::nanoseconds peer_age{0};  // since the newest accepted peer state arrived
+  bool peer_seen{false};                 // any peer state accepted this session
+  bool aligned{false};                   // within the alignment tolerance of the peer
+  bool device_fault{false};              // device fault or e-stop bit
+  bool law_fault{false};                 // the control law latched a fault
+};
+
+struct CycleOutputs {
+  Mode mode{Mode::kDisarmed};
+  double coupling_weight{0.0};  // 0..1: engage ramp; 0 outside engaged
+  bool centring{false};         // aligning: the weak centring force guides the operator
+  bool actuators_enabled{false};
+  const char* reason{""};  // why the last transition happened (static string)
+};
+
+class NodeStateMachine {
+ public:
+  explicit NodeStateMachine(const StateMachineParams& params) noexcept : params_(params) {}
+
+  // RT-safe.
+  [[nodiscard]] CycleOutputs step(const CycleInputs& in) noexcept;
+  [[nodiscard]] Mode mode() const noexcept { return mode_; }
+
+ private:
+  void go(Mode m, const char* why, std::chrono::nanoseconds now) noexcept;
+
+  StateMachineParams params_{};
+  Mode mode_{Mode::kDisarmed};
+  const char* reason_{"start"};
+  std::chrono::nanoseconds engaged_at_{0};
+};
+
+}  // namespace teleop::node

@@ -1,0 +1,114 @@
+// The node's operating states: every transition of issue 4, and its deadlines read from the
+// cycle times handed in (a fake clock), never by sleeping.
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "common/node/node_state_machine.hpp"
+
+namespace teleop::node {
+namespace {
+
+using std::chrono::milliseconds;
+using std::chrono::nanoseconds;
+
+struct Driver {
+  NodeStateMachine sm{StateMachineParams{milliseconds(50), milliseconds(500)}};
+  nanoseconds now{0};
+  nanoseconds last_peer{0};
+  bool peer_seen{true};
+  bool aligned{false};
+  bool device_fault{false};
+  bool law_fault{false};
+
+  // One 1 ms cycle; the peer's state arrives every cycle unless `peer_silent`.
+  CycleOutputs cycle(Command c = Command::kNone, bool peer_silent = false) {
+    now += milliseconds(1);
+    if (!peer_silent) last_peer = now;
+    return sm.step({now, c, now - last_peer, peer_seen, aligned, device_fault, law_fault});
+  }
+};
+
+TEST(NodeStateMachine, ArmAlignEngageWithRamp) {
+  Driver d;
+  EXPECT_EQ(d.cycle().mode, Mode::kDisarmed);
+  EXPECT_FALSE(d.cycle(Command::kEngage).actuators_enabled);  // not armed: ignored
+  EXPECT_EQ(d.cycle(Command::kArm).mode, Mode::kArmed);
+  CycleOutputs o = d.cycle(Command::kEngage);
+  EXPECT_EQ(o.mode, Mode::kAligning);
+  EXPECT_TRUE(o.centring);
+  EXPECT_EQ(o.coupling_weight, 0.0);
+  d.aligned = true;
+  o = d.cycle();
+  EXPECT_EQ(o.mode, Mode::kEngaged);
+  EXPECT_EQ(o.coupling_weight, 0.0);  // the ramp starts at the engage instant
+  for (int i = 0; i < 250; ++i) o = d.cycle();
+  EXPECT_NEAR(o.coupling_weight, 0.5, 1e-12);  // 250 ms of a 500 ms ramp
+  for (int i = 0; i < 300; ++i) o = d.cycle();
+  EXPECT_EQ(o.coupling_weight, 1.0);
+}
+
+TEST(NodeStateMachine, EngageNeedsAFreshPeer) {
+  Driver d;
+  d.peer_seen = false;
+  (void)d.cycle(Command::kArm);
+  const CycleOutputs o = d.cycle(Command::kEngage);
+  EXPECT_EQ(o.mode, Mode::kArmed);
+  EXPECT_EQ(std::string(o.reason), "engage refused: no fresh peer state");
+}
+
+TEST(NodeStateMachine, PeerSilenceBeyondTheTimeoutGoesSafeAndLatches) {
+  Driver d;
+  d.aligned = true;
+  (void)d.cycle(Command::kArm);
+  (void)d.cycle(Command::kEngage);
+  (void)d.cycle();
+  ASSERT_EQ(d.sm.mode(), Mode::kEngaged);
+  // Silent for 50 cycles: age 50 ms = the timeout, still engaged; the 51st goes safe.
+  for (int i = 0; i < 50; ++i) ASSERT_EQ(d.cycle(Command::kNone, true).mode, Mode::kEngaged) << i;
+  const CycleOutputs o = d.cycle(Command::kNone, true);
+  EXPECT_EQ(o.mode, Mode::kSafe);
+  EXPECT_FALSE(o.actuators_enabled);
+  EXPECT_EQ(std::string(o.reason), "peer timeout");
+  // The peer is back: still safe until an operator clears, then disarmed, not engaged.
+  EXPECT_EQ(d.cycle().mode, Mode::kSafe);
+  EXPECT_EQ(d.cycle(Command::kEngage).mode, Mode::kSafe);
+  EXPECT_EQ(d.cycle(Command::kClear).mode, Mode::kDisarmed);
+}
+
+TEST(NodeStateMachine, EStopFromEveryStateAndFaultsLatch) {
+  for (int steps = 0; steps < 5; ++steps) {
+    Driver d;
+    d.aligned = true;
+    const Command path[] = {Command::kArm, Command::kEngage, Command::kNone, Command::kClutch};
+    for (int i = 0; i < steps && i < 4; ++i) (void)d.cycle(path[i]);
+    const CycleOutputs o = d.cycle(Command::kEStop);
+    EXPECT_EQ(o.mode, Mode::kSafe) << steps;
+    EXPECT_FALSE(o.actuators_enabled);
+  }
+  Driver d;
+  (void)d.cycle(Command::kArm);
+  d.device_fault = true;
+  EXPECT_EQ(d.cycle().mode, Mode::kFault);
+  EXPECT_EQ(d.cycle(Command::kClear).mode, Mode::kFault);  // cause still present
+  d.device_fault = false;
+  EXPECT_EQ(d.cycle().mode, Mode::kFault);  // latched until cleared
+  EXPECT_EQ(d.cycle(Command::kClear).mode, Mode::kDisarmed);
+}
+
+TEST(NodeStateMachine, ClutchHoldsEngagementAndReRampsOnRelease) {
+  Driver d;
+  d.aligned = true;
+  (void)d.cycle(Command::kArm);
+  (void)d.cycle(Command::kEngage);
+  (void)d.cycle();
+  for (int i = 0; i < 600; ++i) (void)d.cycle();
+  EXPECT_EQ(d.cycle(Command::kClutch).mode, Mode::kClutched);
+  CycleOutputs o = d.cycle(Command::kUnclutch);
+  EXPECT_EQ(o.mode, Mode::kEngaged);
+  EXPECT_EQ(o.coupling_weight, 0.0);
+  EXPECT_EQ(d.cycle(Command::kDisengage).mode, Mode::kArmed);
+}
+
+}  // namespace
+}  // namespace teleop::node
