@@ -2,7 +2,6 @@
 
 #include <fmt/format.h>
 
-#include <charconv>
 #include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -20,29 +19,6 @@ namespace {
 
 using nlohmann::json;
 using stability::Side;
-
-double parse_number(const std::string& text, const std::string& what) {
-  double v = 0.0;
-  const char* first = text.data();
-  const char* last = text.data() + text.size();
-  const auto [ptr, ec] = std::from_chars(first, last, v);
-  if (ec != std::errc{} || ptr != last || !std::isfinite(v)) {
-    throw UsageError(fmt::format("{}: '{}' is not a finite number", what, text));
-  }
-  return v;
-}
-
-std::vector<std::string> split(const std::string& s, char sep) {
-  std::vector<std::string> parts;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t pos = s.find(sep, start);
-    parts.push_back(s.substr(start, pos - start));
-    if (pos == std::string::npos) break;
-    start = pos + 1;
-  }
-  return parts;
-}
 
 Sweep parse_sweep(const std::string& spec) {
   const std::size_t eq = spec.find('=');
@@ -285,12 +261,10 @@ std::string analyze_usage() {
 
 AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
   AnalyzeOptions o;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    auto value = [&](const char* flag) -> const std::string& {
-      if (i + 1 >= args.size()) throw UsageError(fmt::format("{} needs a value", flag));
-      return args[++i];
-    };
+  ArgCursor c(args);
+  while (c.next()) {
+    const std::string& a = c.arg();
+    auto value = [&](const char* flag) -> const std::string& { return c.value(flag); };
     if (a == "--json") {
       o.json = true;
     } else if (a == "--set") {
@@ -337,18 +311,12 @@ AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
 }
 
 int run_analyze(const AnalyzeOptions& o, std::ostream& out, std::ostream& err) {
-  try {
+  return run_guarded("analyze", err, [&] {
     const config::LoadedConfig cfg = config::load_config_file(o.config_path, o.overrides);
     if (o.force_loop) return run_force_loop(cfg, o, out);
     if (o.max_stiffness_side) return run_limits(cfg, o, out);
     return run_single(cfg, o, out);
-  } catch (const config::ConfigError& e) {
-    err << "teleopctl analyze: invalid configuration:\n" << e.what() << "\n";
-    return kExitError;
-  } catch (const std::exception& e) {
-    err << "teleopctl analyze: " << e.what() << "\n";
-    return kExitError;
-  }
+  });
 }
 
 }  // namespace teleop::ctl

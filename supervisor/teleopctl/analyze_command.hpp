@@ -4,19 +4,13 @@
 
 #include <iosfwd>
 #include <optional>
-#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "common/stability/stiffness_search.hpp"
+#include "supervisor/teleopctl/cli_args.hpp"
 
 namespace teleop::ctl {
-
-// Bad command line: exit code 2 and the usage text.
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 struct Sweep {
   std::string path{};
@@ -37,10 +31,9 @@ struct AnalyzeOptions {
   std::optional<std::string> plot_path{};
 };
 
-// Exit codes of `teleopctl analyze`.
-inline constexpr int kExitStable = 0;  // also: a limits table or force-loop run completed
-inline constexpr int kExitError = 1;   // bad configuration or I/O
-inline constexpr int kExitUsage = 2;
+// Exit codes of `teleopctl analyze` (1 and 2, bad input and usage, as every command:
+// cli_args.hpp).
+inline constexpr int kExitStable = kExitOk;  // also: a limits table or force-loop run completed
 inline constexpr int kExitUnstable = 3;
 inline constexpr int kExitUncertain = 4;
 

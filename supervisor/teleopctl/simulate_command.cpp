@@ -84,21 +84,20 @@ std::string simulate_usage() {
 
 SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
   SimulateOptions o;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    const std::string& a = args[i];
-    auto value = [&](const char* flag) -> const std::string& {
-      if (i + 1 >= args.size()) throw UsageError(fmt::format("{} needs a value", flag));
-      return args[++i];
-    };
+  ArgCursor c(args);
+  while (c.next()) {
+    const std::string& a = c.arg();
+    auto value = [&](const char* flag) -> const std::string& { return c.value(flag); };
     if (a == "--json") {
       o.json = true;
     } else if (a == "--set") {
       o.overrides.push_back(value("--set"));
+    } else if (a.rfind("--set=", 0) == 0) {
+      o.overrides.push_back(a.substr(6));
     } else if (a == "--duration") {
       const std::string& v = value("--duration");
-      double d = 0.0;
-      const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), d);
-      if (ec != std::errc{} || p != v.data() + v.size() || !(d > 0.0) || !std::isfinite(d)) {
+      const double d = parse_number(v, "--duration");
+      if (!(d > 0.0)) {
         throw UsageError(fmt::format("--duration: '{}' is not a positive number of seconds", v));
       }
       o.duration_s = d;
@@ -127,7 +126,7 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
 }
 
 int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err) {
-  try {
+  return run_guarded("simulate", err, [&] {
     std::vector<std::string> sets = o.overrides;
     if (o.duration_s) sets.push_back(fmt::format("scene.duration_s={}", *o.duration_s));
     if (o.seed) sets.push_back(fmt::format("scene.seed={}", *o.seed));
@@ -186,13 +185,7 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     if (o.plot_path) write_plot(*o.plot_path, r);
     if (s.fault) return 5;
     return s.oscillation.detected || s.master_oscillation.detected ? 3 : 0;
-  } catch (const config::ConfigError& e) {
-    err << "teleopctl simulate: invalid scene:\n" << e.what() << "\n";
-    return kExitError;
-  } catch (const std::exception& e) {
-    err << "teleopctl simulate: " << e.what() << "\n";
-    return kExitError;
-  }
+  });
 }
 
 }  // namespace teleop::ctl

@@ -1,0 +1,37 @@
+#include "supervisor/teleopctl/cli_args.hpp"
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <cmath>
+
+namespace teleop::ctl {
+
+double parse_number(const std::string& text, const std::string& what) {
+  double v = 0.0;
+  const char* last = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), last, v);
+  if (ec != std::errc{} || ptr != last || !std::isfinite(v)) {
+    throw UsageError(fmt::format("{}: '{}' is not a finite number", what, text));
+  }
+  return v;
+}
+
+std::vector<std::string> split(const std::string& s, char separator) {
+  std::vector<std::string> parts;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t pos = s.find(separator, start);
+    parts.push_back(s.substr(start, pos - start));
+    if (pos == std::string::npos) break;
+    start = pos + 1;
+  }
+  return parts;
+}
+
+const std::string& ArgCursor::value(const char* flag) {
+  if (i_ + 1 >= args_.size()) throw UsageError(fmt::format("{} needs a value", flag));
+  return args_[++i_];
+}
+
+}  // namespace teleop::ctl
