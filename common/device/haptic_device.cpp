@@ -1,6 +1,7 @@
 #include "common/device/haptic_device.hpp"
 
 #include "common/device/sim_device.hpp"
+#include "common/device/usb_device.hpp"
 
 namespace teleop::device {
 
@@ -22,14 +23,19 @@ const char* to_string(StatusCode code) noexcept {
   return "unknown";
 }
 
-MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim) {
+MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim,
+                             const UsbDeviceConfig& usb) {
   switch (kind) {
     case DeviceKind::kSim:
       return {std::make_unique<SimDevice>(sim), Status::Ok()};
     case DeviceKind::kUsb:
-      return {nullptr, {StatusCode::kUnavailable, "usb device not built yet"}};
+      return {std::make_unique<UsbDevice>(usb), Status::Ok()};
   }
   return {nullptr, {StatusCode::kInvalidArgument, "unknown device kind"}};
+}
+
+MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim) {
+  return make_device(kind, sim, UsbDeviceConfig{});
 }
 
 MakeDeviceResult make_device(DeviceKind kind) { return make_device(kind, SimDeviceConfig{}); }

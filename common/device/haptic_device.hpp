@@ -12,6 +12,7 @@
 // the human's force on the handle (F_h), on the slave the device's force on its environment (F_e).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 
@@ -72,20 +73,35 @@ class HapticDevice {
   virtual Status read(Sample& sample) noexcept = 0;
   // Held until the next write. RT-safe.
   virtual Status write(const Command& command) noexcept = 0;
+  // End of the node's cycle, after write(): a simulated device steps its physics one period
+  // here (the lockstep order: read, law, write, step); a real device has nothing to do.
+  // RT-safe.
+  virtual Status tick(std::chrono::nanoseconds /*period*/) noexcept { return Status::Ok(); }
+  // The operator engaged the teleoperator for the first time: a simulated device starts its
+  // scene (the human's push, a malicious user's schedule) here; a real device ignores it.
+  // RT-safe.
+  virtual void on_engaged() noexcept {}
 };
 
 enum class DeviceKind { kSim, kUsb };
 
 struct SimDeviceConfig;  // common/device/sim_device.hpp
+struct UsbDeviceConfig;  // common/device/usb_device.hpp
 
 struct MakeDeviceResult {
   std::unique_ptr<HapticDevice> device{};
   Status status{};
 };
 
-// kSim: a SimDevice (unconfigured: call configure()). kUsb: an error until issue 4 adds it.
+// The device the configuration names, unconfigured (call configure()). kSim: a SimDevice from
+// sim. kUsb: a UsbDevice over libusb from usb; its configure() opens the device and, with none
+// attached, returns kUnavailable "no USB haptic device attached: expected vendor 0x1209 product
+// 0x7E1E (check the cable and udev permissions)".
+[[nodiscard]] MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim,
+                                           const UsbDeviceConfig& usb);
+// As above with the default UsbDeviceConfig.
 [[nodiscard]] MakeDeviceResult make_device(DeviceKind kind, const SimDeviceConfig& sim);
-// kSim with the default SimDeviceConfig (a haptic-paddle slave in free space).
+// As above with the default SimDeviceConfig (a haptic-paddle slave in free space).
 [[nodiscard]] MakeDeviceResult make_device(DeviceKind kind);
 
 }  // namespace teleop::device

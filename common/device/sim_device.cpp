@@ -47,6 +47,7 @@ Status SimDevice::configure() {
     return {StatusCode::kInvalidArgument, error_.c_str()};
   }
   time_ = std::chrono::nanoseconds{0};
+  scene_origin_.reset();
   command_ = {};
   command_rejected_ = false;
   applied_force_N_ = 0.0;
@@ -93,7 +94,13 @@ Status SimDevice::advance(std::chrono::nanoseconds period) noexcept {
     return {StatusCode::kInvalidArgument, "period must be positive"};
   }
   const double period_s = std::chrono::duration<double>(period).count();
-  const double t0_s = std::chrono::duration<double>(time_).count();
+  // Scene time: device time, or since engagement when the scene waits for it (no push before).
+  const bool scene_running = !config_.hold_scene_until_engaged || scene_origin_.has_value();
+  const double t0_s =
+      std::chrono::duration<double>(
+          scene_running ? time_ - scene_origin_.value_or(std::chrono::nanoseconds{0})
+                        : std::chrono::nanoseconds{0})
+          .count();
   try {
     if (period_s != plant_->period_s()) plant_->set_period(period);
     if (human_ && human_->malicious()) {
@@ -109,7 +116,7 @@ Status SimDevice::advance(std::chrono::nanoseconds period) noexcept {
     return {StatusCode::kFault, "sim device: propagator rebuild failed"};
   }
   const sim::PeriodForce exogenous =
-      human_ ? human_->exogenous(t0_s, period_s) : sim::PeriodForce{};
+      human_ && scene_running ? human_->exogenous(t0_s, period_s) : sim::PeriodForce{};
   const bool driving = stage_ == Stage::kActive && !estop_;
   applied_force_N_ = driving ? command_.force_N : 0.0;
   plant_->step(applied_force_N_, exogenous.force_N, exogenous.slope_N_per_s);
@@ -147,6 +154,10 @@ SimTruth SimDevice::truth() const noexcept {
   t.human = current_human_;
   t.malicious_index = malicious_index_;
   return t;
+}
+
+void SimDevice::on_engaged() noexcept {
+  if (!scene_origin_) scene_origin_ = time_;
 }
 
 }  // namespace teleop::device

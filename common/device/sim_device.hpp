@@ -34,6 +34,9 @@ struct SimDeviceConfig {
   sim::AmplifierParams amplifier{};
   std::uint64_t seed{1};
   double initial_position_m{0.0};
+  // A live node's device: the scene's clock (the human's push, a malicious user's schedule)
+  // stands at 0 with no push until on_engaged(); the lockstep simulator starts it at once.
+  bool hold_scene_until_engaged{false};
 
   // The paper's master paddle (0.040 kg, 0.41 Ns/m) held by a human.
   [[nodiscard]] static SimDeviceConfig paddle_master(sim::HumanParams human);
@@ -70,6 +73,9 @@ class SimDevice final : public HapticDevice {
   // configured period; another period rebuilds the propagators first (slow, still no
   // allocation). Needs configure(); inactive or e-stopped, the actuator gives 0 N.
   Status advance(std::chrono::nanoseconds period) noexcept;
+  // The node's cycle end: advance(period).
+  Status tick(std::chrono::nanoseconds period) noexcept override { return advance(period); }
+  void on_engaged() noexcept override;
 
   // The simulated e-stop button: while engaged the actuator gives 0 N and samples carry kFault.
   void set_estop(bool engaged) noexcept { estop_ = engaged; }
@@ -92,6 +98,7 @@ class SimDevice final : public HapticDevice {
   std::optional<sim::LoadCell> load_cell_{};
   std::optional<sim::Amplifier> amplifier_{};
   std::chrono::nanoseconds time_{0};
+  std::optional<std::chrono::nanoseconds> scene_origin_{};  // device time the scene started
   sim::AmplifierOutput command_{};
   bool command_rejected_{false};
   bool estop_{false};

@@ -56,6 +56,8 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
       case Mode::kAligning:
         if (!peer_fresh) {
           go(Mode::kSafe, "peer timeout", in.now);
+        } else if (in.peer_failed) {
+          go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
         } else if (in.command == Command::kDisengage) {
           go(Mode::kArmed, "disengage", in.now);
         } else if (in.aligned) {
@@ -65,6 +67,10 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
       case Mode::kEngaged:
         if (!peer_fresh) {
           go(Mode::kSafe, "peer timeout", in.now);
+        } else if (in.peer_failed) {
+          go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
+        } else if (in.peer_disengaged) {
+          go(Mode::kArmed, "peer disengaged", in.now);
         } else if (in.command == Command::kDisengage) {
           go(Mode::kArmed, "disengage", in.now);
         } else if (in.command == Command::kClutch) {
@@ -74,6 +80,10 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
       case Mode::kClutched:
         if (!peer_fresh) {
           go(Mode::kSafe, "peer timeout", in.now);
+        } else if (in.peer_failed) {
+          go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
+        } else if (in.peer_disengaged) {
+          go(Mode::kArmed, "peer disengaged", in.now);
         } else if (in.command == Command::kDisengage) {
           go(Mode::kArmed, "disengage", in.now);
         } else if (in.command == Command::kUnclutch) {

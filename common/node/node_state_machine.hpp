@@ -36,6 +36,10 @@ struct CycleInputs {
   bool aligned{false};                   // within the alignment tolerance of the peer
   bool device_fault{false};              // device fault or e-stop bit
   bool law_fault{false};                 // the control law latched a fault
+  // The peer is safe or faulted, or restarted (a new session): coupling ends in safe.
+  bool peer_failed{false};
+  // The peer left coupling by command (disarmed or armed): coupling ends in armed.
+  bool peer_disengaged{false};
 };
 
 struct CycleOutputs {

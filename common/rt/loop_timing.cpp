@@ -35,7 +35,8 @@ std::chrono::nanoseconds LatencyHistogram::quantile(double q) const noexcept {
 
 LoopTiming::TimePoint LoopTiming::woke(TimePoint now) noexcept {
   const TimePoint deadline = next_;
-  wakeup_.add(now - deadline);
+  last_wakeup_ = now - deadline;
+  wakeup_.add(last_wakeup_);
   cycle_start_ = now;
   ++cycles_;
   next_ = deadline + period_;

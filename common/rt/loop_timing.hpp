@@ -50,12 +50,17 @@ class LoopTiming {
   [[nodiscard]] std::uint64_t cycles() const noexcept { return cycles_; }
   [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }
   [[nodiscard]] const LatencyHistogram& wakeup_latency() const noexcept { return wakeup_; }
+  // Of the newest cycle.
+  [[nodiscard]] std::chrono::nanoseconds last_wakeup_latency() const noexcept {
+    return last_wakeup_;
+  }
   [[nodiscard]] const LatencyHistogram& compute_time() const noexcept { return compute_; }
 
  private:
   std::chrono::nanoseconds period_;
   TimePoint next_;
   TimePoint cycle_start_{0};
+  std::chrono::nanoseconds last_wakeup_{0};
   std::uint64_t cycles_{0};
   std::uint64_t overruns_{0};
   LatencyHistogram wakeup_{};

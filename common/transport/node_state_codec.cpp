@@ -51,6 +51,8 @@ const char* to_string(Rejection r) {
       return "non_finite";
     case Rejection::kWrongRole:
       return "wrong_role";
+    case Rejection::kWrongSession:
+      return "wrong_session";
     case Rejection::kStale:
       return "stale";
     case Rejection::kCount:
@@ -100,6 +102,19 @@ std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_vie
   Accepted out;
   out.new_session = !session_ || *session_ != m.session_id();
   if (!out.new_session && m.sequence() <= last_sequence_) return reject(Rejection::kStale);
+  if (out.new_session) {
+    // A session the peer has left can only come back as a replay: a restarted peer draws a
+    // new random id.
+    for (const std::uint64_t old : retired_) {
+      if (old == m.session_id()) return reject(Rejection::kWrongSession);
+    }
+    if (session_) {
+      retired_[retired_next_ % retired_.size()] = *session_;
+      ++retired_next_;
+    }
+  } else {
+    lost_ += m.sequence() - last_sequence_ - 1;
+  }
   session_ = m.session_id();
   last_sequence_ = m.sequence();
   ++accepted_;

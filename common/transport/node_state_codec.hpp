@@ -37,10 +37,11 @@ struct NodeStateRecord {
 
 // Why a received packet did not reach the control law.
 enum class Rejection : std::uint8_t {
-  kMalformed,  // not a NodeState, or truncated
-  kNonFinite,  // NaN or infinity in a physical field
-  kWrongRole,  // not from the expected peer role
-  kStale,      // sequence not newer than the last accepted one: duplicate, replay, reorder
+  kMalformed,     // not a NodeState, or truncated
+  kNonFinite,     // NaN or infinity in a physical field
+  kWrongRole,     // not from the expected peer role
+  kStale,         // sequence not newer than the last accepted one: duplicate, replay, reorder
+  kWrongSession,  // from a session of the peer that has ended (a replay from a capture)
   kCount,
 };
 [[nodiscard]] const char* to_string(Rejection r);
@@ -62,12 +63,18 @@ class PeerStateFilter {
     return rejected_[static_cast<std::size_t>(r)];
   }
   [[nodiscard]] std::uint64_t accepted() const { return accepted_; }
+  // Sequence numbers of the current session never received (gaps between accepted states).
+  [[nodiscard]] std::uint64_t lost() const { return lost_; }
 
  private:
   Role expected_;
   std::optional<std::uint64_t> session_{};
   std::uint64_t last_sequence_{0};
   std::uint64_t accepted_{0};
+  std::uint64_t lost_{0};
+  // Sessions the peer has left, newest overwriting oldest.
+  std::array<std::uint64_t, 16> retired_{};
+  std::size_t retired_next_{0};
   std::array<std::uint64_t, static_cast<std::size_t>(Rejection::kCount)> rejected_{};
 };
 

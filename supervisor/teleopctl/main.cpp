@@ -5,6 +5,8 @@
 #include <vector>
 
 #include "supervisor/teleopctl/analyze_command.hpp"
+#include "supervisor/teleopctl/keygen_command.hpp"
+#include "supervisor/teleopctl/node_command.hpp"
 #include "supervisor/teleopctl/simulate_command.hpp"
 
 namespace {
@@ -14,6 +16,9 @@ void usage(std::ostream& os) {
         "commands:\n"
         "  analyze    stability of a teleoperator configuration (see 'teleopctl analyze --help')\n"
         "  simulate   play a scene on simulated devices (see 'teleopctl simulate --help')\n"
+        "  launch     run master and slave on loopback, engaged (see 'teleopctl launch --help')\n"
+        "  node       one command to one node: arm, engage, estop, ... ('teleopctl node --help')\n"
+        "  keygen     a CURVE key pair for a node or client (see 'teleopctl keygen --help')\n"
         "  help       this text\n";
 }
 
@@ -50,6 +55,28 @@ int main(int argc, char** argv) {
                                        std::cerr);
     } catch (const teleop::ctl::UsageError& e) {
       std::cerr << "teleopctl simulate: " << e.what() << "\n" << teleop::ctl::simulate_usage();
+      return teleop::ctl::kExitUsage;
+    }
+  }
+  // Commands whose runner reads its own arguments: name, usage, runner.
+  struct Simple {
+    const char* name;
+    std::string (*usage)();
+    int (*run)(const std::vector<std::string>&, std::ostream&, std::ostream&);
+  };
+  for (const Simple& c : {Simple{"launch", teleop::ctl::launch_usage, teleop::ctl::run_launch},
+                          Simple{"node", teleop::ctl::node_usage, teleop::ctl::run_node_command},
+                          Simple{"keygen", teleop::ctl::keygen_usage, teleop::ctl::run_keygen}}) {
+    if (args[0] != c.name) continue;
+    const std::vector<std::string> rest(args.begin() + 1, args.end());
+    if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {
+      std::cout << c.usage();
+      return 0;
+    }
+    try {
+      return c.run(rest, std::cout, std::cerr);
+    } catch (const teleop::ctl::UsageError& e) {
+      std::cerr << "teleopctl " << c.name << ": " << e.what() << "\n" << c.usage();
       return teleop::ctl::kExitUsage;
     }
   }

@@ -1,0 +1,205 @@
+#include "common/config/node_loader.hpp"
+
+#include <cmath>
+#include <string>
+
+#include "common/config/scene_loader.hpp"
+
+namespace teleop::config {
+namespace {
+
+namespace v1 = teleop::v1;
+using transport::Role;
+
+class Problems {
+ public:
+  explicit Problems(const LoadedConfig& config) : config_(config) {}
+  void add(const std::string& path, const std::string& what) {
+    text_ += "\n  " + field_origin(config_, path) + ": " + path + ": " + what;
+  }
+  void throw_if_any() const {
+    if (!text_.empty()) throw ConfigError(config_.source_name + ": invalid node settings:" + text_);
+  }
+
+ private:
+  const LoadedConfig& config_;
+  std::string text_{};
+};
+
+std::chrono::nanoseconds from_ms(double ms) {
+  return std::chrono::nanoseconds(static_cast<long long>(std::llround(ms * 1e6)));
+}
+
+double value_or_default(Problems& p, const std::string& path, bool has, double value,
+                        double fallback, bool allow_zero) {
+  if (!has) return fallback;
+  if (!(allow_zero ? value >= 0.0 : value > 0.0)) {
+    p.add(path, std::string("must be ") + (allow_zero ? ">= 0" : "> 0") + ", got " +
+                    std::to_string(value));
+  }
+  return value;
+}
+
+bool is_z85_key(const std::string& key) { return key.size() == 40; }
+
+}  // namespace
+
+NodeEndpoints default_endpoints(Role role) {
+  const bool master = role == Role::kMaster;
+  NodeEndpoints e;
+  e.state = master ? "tcp://127.0.0.1:5560" : "tcp://127.0.0.1:5561";
+  e.peer_state = master ? "tcp://127.0.0.1:5561" : "tcp://127.0.0.1:5560";
+  e.command = master ? "tcp://127.0.0.1:5562" : "tcp://127.0.0.1:5563";
+  e.telemetry = master ? "tcp://127.0.0.1:5564" : "tcp://127.0.0.1:5565";
+  return e;
+}
+
+NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
+  if (role != Role::kMaster && role != Role::kSlave) {
+    throw ConfigError("node role must be master or slave");
+  }
+  const bool master = role == Role::kMaster;
+  const std::string side = master ? "master" : "slave";
+  const v1::SystemConfig& c = config.config;
+
+  // The simulated devices and the law of the scene: the same code path as `teleopctl simulate`,
+  // so a live run and a lockstep run of one file agree. Without a scene, a scene with no push in
+  // free space; a band of humans holds the handle as the band's middle at its lowest force.
+  LoadedConfig scene_config = config;
+  v1::Scene& scene = *scene_config.config.mutable_scene();
+  if (!scene.has_duration_s()) scene.set_duration_s(1.0);
+  if (scene_config.config.has_human() && scene_config.config.human().has_band() &&
+      !scene.has_malicious_user()) {
+    const v1::HumanBand& band = scene_config.config.human().band();
+    const double f = band.force_levels_n_size() > 0 ? band.force_levels_n(0) : 0.0;
+    auto mid = [f](const v1::ParameterBand& b) {
+      return 0.5 * (b.lower().intercept() + b.lower().slope_per_n() * f + b.upper().intercept() +
+                    b.upper().slope_per_n() * f);
+    };
+    v1::HumanImpedance fixed;
+    fixed.set_mass_kg(mid(band.mass_kg()));
+    fixed.set_damping_ns_per_m(mid(band.damping_ns_per_m()));
+    fixed.set_stiffness_n_per_m(mid(band.stiffness_n_per_m()));
+    *scene_config.config.mutable_human()->mutable_fixed() = fixed;
+  }
+  if (scene.has_force_device()) {
+    throw ConfigError(config.source_name +
+                      ": scene.force_device: the nodes run the bilateral paddles; a force-device "
+                      "scene is for `teleopctl simulate`");
+  }
+  const scene::SceneSetup s = to_scene_setup(scene_config);
+
+  NodeSetup out;
+  const double rate_hz = s.teleop.sample_rate_hz;
+  out.settings.role = role;
+  out.settings.period =
+      std::chrono::nanoseconds(static_cast<long long>(std::llround(1e9 / rate_hz)));
+  out.settings.law = s.law;
+  out.sim = master ? s.master : s.slave;
+  out.sim.period = out.settings.period;
+  out.sim.hold_scene_until_engaged = true;
+  if (s.ideal) out.sim.quantize_position = false;
+
+  Problems p(config);
+  const v1::Link& link = c.link();
+  const double timeout_ms = value_or_default(p, "link.peer_timeout_ms", link.has_peer_timeout_ms(),
+                                             link.peer_timeout_ms(), 30.0, false);
+  const double safe_ms = value_or_default(p, "link.safe_ramp_ms", link.has_safe_ramp_ms(),
+                                          link.safe_ramp_ms(), 10.0, true);
+  const double engage_ms = value_or_default(p, "link.engage_ramp_ms", link.has_engage_ramp_ms(),
+                                            link.engage_ramp_ms(), 200.0, true);
+  out.settings.machine.peer_timeout = from_ms(timeout_ms);
+  out.settings.machine.engage_ramp = from_ms(engage_ms);
+  out.settings.safe_ramp = from_ms(safe_ms);
+  node::AlignmentParams& a = out.settings.alignment;
+  a.tolerance_m =
+      value_or_default(p, "link.alignment_tolerance_m", link.has_alignment_tolerance_m(),
+                       link.alignment_tolerance_m(), a.tolerance_m, false);
+  a.centring_stiffness_N_per_m =
+      value_or_default(p, "link.centring_stiffness_N_per_m", link.has_centring_stiffness_n_per_m(),
+                       link.centring_stiffness_n_per_m(), a.centring_stiffness_N_per_m, true);
+  a.centring_damping_Ns_per_m =
+      value_or_default(p, "link.centring_damping_Ns_per_m", link.has_centring_damping_ns_per_m(),
+                       link.centring_damping_ns_per_m(), a.centring_damping_Ns_per_m, true);
+  a.centring_max_force_N =
+      value_or_default(p, "link.centring_max_force_N", link.has_centring_max_force_n(),
+                       link.centring_max_force_n(), a.centring_max_force_N, true);
+  // A safe ramp longer than the whole link budget would leave force on a dead link.
+  if (safe_ms > 1000.0) p.add("link.safe_ramp_ms", "must be <= 1000");
+
+  const v1::Side& own = master ? c.master() : c.slave();
+  const v1::Side& other = master ? c.slave() : c.master();
+  out.device_kind =
+      own.device().kind() == v1::USB ? device::DeviceKind::kUsb : device::DeviceKind::kSim;
+
+  const NodeEndpoints defaults = default_endpoints(role);
+  const v1::Node& node = own.node();
+  out.endpoints.state = node.state_endpoint().empty() ? defaults.state : node.state_endpoint();
+  out.endpoints.peer_state =
+      other.node().state_endpoint().empty() ? defaults.peer_state : other.node().state_endpoint();
+  out.endpoints.command =
+      node.command_endpoint().empty() ? defaults.command : node.command_endpoint();
+  out.endpoints.telemetry =
+      node.telemetry_endpoint().empty() ? defaults.telemetry : node.telemetry_endpoint();
+  if (node.has_telemetry_rate_hz()) {
+    const double r = node.telemetry_rate_hz();
+    if (!(r > 0.0 && r <= 1000.0)) {
+      p.add(side + ".node.telemetry_rate_hz", "must be in (0, 1000], got " + std::to_string(r));
+    }
+    out.telemetry_rate_hz = r;
+  }
+
+  const v1::RealTime& rt = node.rt();
+  out.rt.fifo_priority = rt.has_fifo_priority() ? rt.fifo_priority() : 80;
+  if (out.rt.fifo_priority < 0 || out.rt.fifo_priority > 99) {
+    p.add(side + ".node.rt.fifo_priority",
+          "must be in [0, 99], got " + std::to_string(out.rt.fifo_priority));
+  }
+  out.rt.lock_memory = rt.has_lock_memory() ? rt.lock_memory() : true;
+  out.rt.cpu = rt.has_cpu() ? rt.cpu() : -1;
+  if (rt.has_cpu() && rt.cpu() < 0) {
+    p.add(side + ".node.rt.cpu", "must be >= 0, got " + std::to_string(rt.cpu()));
+  }
+  out.rt.required = rt.required();
+  out.cpu_dma_latency_us = rt.has_cpu_dma_latency_us() ? rt.cpu_dma_latency_us() : 10;
+  if (out.cpu_dma_latency_us < -1) {
+    p.add(side + ".node.rt.cpu_dma_latency_us",
+          "must be >= 0 (or -1: leave alone), got " + std::to_string(out.cpu_dma_latency_us));
+  }
+
+  if (node.has_usb()) {
+    if (node.usb().has_vendor_id()) out.usb.vendor_id = node.usb().vendor_id();
+    if (node.usb().has_product_id()) out.usb.product_id = node.usb().product_id();
+    if (node.usb().has_watchdog_ms()) out.usb.watchdog_ms = node.usb().watchdog_ms();
+    if (out.usb.vendor_id > 0xFFFF) p.add(side + ".node.usb.vendor_id", "must fit 16 bits");
+    if (out.usb.product_id > 0xFFFF) p.add(side + ".node.usb.product_id", "must fit 16 bits");
+    if (!(out.usb.watchdog_ms >= 1.0 && out.usb.watchdog_ms <= 1000.0)) {
+      p.add(side + ".node.usb.watchdog_ms", "must be in [1, 1000]");
+    }
+  }
+
+  const v1::Security& sec = c.security();
+  out.keys.insecure = sec.insecure();
+  out.keys.secret_key_file = node.secret_key_file();
+  out.keys.own_public_key = master ? sec.master_public_key() : sec.slave_public_key();
+  out.keys.peer_public_key = master ? sec.slave_public_key() : sec.master_public_key();
+  auto check_key = [&](const std::string& path, const std::string& key) {
+    if (!key.empty() && !is_z85_key(key)) {
+      p.add(path, "must be a 40-character Z85 CURVE public key (teleopctl keygen), got " +
+                      std::to_string(key.size()) + " characters");
+    }
+  };
+  check_key("security.master_public_key", sec.master_public_key());
+  check_key("security.slave_public_key", sec.slave_public_key());
+  if (!out.keys.peer_public_key.empty()) {
+    out.keys.allowed_client_keys.push_back(out.keys.peer_public_key);
+  }
+  for (int i = 0; i < sec.client_public_keys_size(); ++i) {
+    check_key("security.client_public_keys[" + std::to_string(i) + "]", sec.client_public_keys(i));
+    out.keys.allowed_client_keys.push_back(sec.client_public_keys(i));
+  }
+  p.throw_if_any();
+  return out;
+}
+
+}  // namespace teleop::config

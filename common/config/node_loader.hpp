@@ -1,0 +1,62 @@
+// A node's part of the one SystemConfig (issue 4 "Launch"): its law and timing, its device,
+// endpoints, keys and real-time settings. The supervisor reads the same file.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/config/config_loader.hpp"
+#include "common/device/haptic_device.hpp"
+#include "common/device/sim_device.hpp"
+#include "common/node/node_core.hpp"
+#include "common/rt/periodic_loop.hpp"
+#include "common/transport/node_state_codec.hpp"
+
+namespace teleop::config {
+
+struct NodeEndpoints {
+  std::string state{};       // this node's NodeState publisher (binds)
+  std::string peer_state{};  // the peer's (connects)
+  std::string command{};
+  std::string telemetry{};
+};
+
+struct NodeKeys {
+  bool insecure{false};
+  std::string secret_key_file{};  // this node's; empty: none given
+  std::string own_public_key{};   // security.<role>_public_key, checked against the secret key
+  std::string peer_public_key{};  // the peer's, to connect to its publisher
+  std::vector<std::string> allowed_client_keys{};  // the peer's plus security.client_public_keys
+};
+
+struct UsbIds {
+  std::uint32_t vendor_id{0x1209};
+  std::uint32_t product_id{0x7E1E};
+  double watchdog_ms{20.0};
+};
+
+struct NodeSetup {
+  node::NodeSettings settings{};  // session_id left for the process to draw
+  device::DeviceKind device_kind{device::DeviceKind::kSim};
+  device::SimDeviceConfig sim{};  // the simulated device, with its human or environment
+  UsbIds usb{};
+  NodeEndpoints endpoints{};
+  NodeKeys keys{};
+  rt::RtSettings rt{};
+  int cpu_dma_latency_us{10};  // -1: leave alone
+  double telemetry_rate_hz{50.0};
+};
+
+// Default endpoints (loopback): master state 5560, slave state 5561, commands 5562/5563,
+// telemetry 5564/5565.
+[[nodiscard]] NodeEndpoints default_endpoints(transport::Role role);
+
+// Validates and requires what the analysis requires (the node runs exactly the analysed law),
+// plus the node sections' ranges. The simulated device is the scene's (`scene`, when present:
+// the human's push and the environment), on hold until the node engages; without a scene the
+// human holds the handle without pushing (human.fixed, or the middle of human.band at its
+// lowest force level) and the slave is in free space. Throws ConfigError naming the field.
+[[nodiscard]] NodeSetup to_node_setup(const LoadedConfig& config, transport::Role role);
+
+}  // namespace teleop::config

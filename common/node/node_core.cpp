@@ -1,0 +1,307 @@
+#include "common/node/node_core.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace teleop::node {
+namespace {
+
+using transport::Role;
+
+// teleop.v1.NodeMode values (node_state.proto): DISARMED = 1 ... FAULT = 7.
+int wire_mode(Mode m) noexcept { return static_cast<int>(m) + 1; }
+
+bool peer_coupling(int wire) noexcept {
+  return wire == wire_mode(Mode::kAligning) || wire == wire_mode(Mode::kEngaged) ||
+         wire == wire_mode(Mode::kClutched);
+}
+bool peer_coupled(int wire) noexcept {
+  return wire == wire_mode(Mode::kEngaged) || wire == wire_mode(Mode::kClutched);
+}
+bool peer_down(int wire) noexcept {
+  return wire == wire_mode(Mode::kSafe) || wire == wire_mode(Mode::kFault);
+}
+
+std::uint32_t law_flags(const control::CommandFlags& f) noexcept {
+  std::uint32_t bits = 0;
+  if (f.saturated) bits |= LawFlagBits::kSaturated;
+  if (f.rate_limited) bits |= LawFlagBits::kRateLimited;
+  if (f.reference_limited) bits |= LawFlagBits::kReferenceLimited;
+  if (f.limit_violation) bits |= LawFlagBits::kLimitViolation;
+  if (f.input_fault) bits |= LawFlagBits::kInputFault;
+  return bits;
+}
+
+}  // namespace
+
+NodeCore::NodeCore(const NodeSettings& settings, device::HapticDevice& device)
+    : settings_(settings),
+      device_(device),
+      machine_(settings.machine),
+      velocity_(std::chrono::duration<double>(settings.period).count(),
+                settings.law.velocity_cutoff_hz) {
+  if (settings_.period.count() <= 0) throw std::invalid_argument("node period must be > 0");
+  if (settings_.role == Role::kMaster) {
+    master_law_.emplace(settings_.law);
+  } else if (settings_.role == Role::kSlave) {
+    slave_law_.emplace(settings_.law);
+  } else {
+    throw std::invalid_argument("node role must be master or slave");
+  }
+}
+
+bool NodeCore::post_command(Command command) noexcept {
+  if (!commands_in_.try_push(command)) return false;
+  commands_posted_.fetch_add(1, std::memory_order_acq_rel);
+  return true;
+}
+
+double NodeCore::master_command(Mode mode, double weight, double position_m,
+                                double velocity_m_per_s, bool coupled,
+                                std::uint32_t& flags) noexcept {
+  const double alpha = settings_.law.scaling.position;
+  const AlignmentParams& a = settings_.alignment;
+  auto centring = [&] {
+    if (!have_peer_) return 0.0;
+    // Toward the slave's position in master coordinates; the device is pushed along +x.
+    const double target_m = peer_.state.position_m / alpha;
+    const double f = -a.centring_stiffness_N_per_m * (position_m - target_m) -
+                     a.centring_damping_Ns_per_m * velocity_m_per_s;
+    return std::clamp(f, -a.centring_max_force_N, a.centring_max_force_N);
+  };
+  switch (mode) {
+    case Mode::kAligning:
+      return centring();
+    case Mode::kEngaged:
+    case Mode::kClutched: {
+      master_law_->set_clutch(mode == Mode::kClutched);
+      const control::PeerState slave{peer_.state.position_m, peer_.state.velocity_m_per_s,
+                                     peer_.state.force_N, false, coupled};
+      const control::Command c = master_law_->step(position_m, slave);
+      flags |= law_flags(c.flags);
+      // The master's actuator is pushed by -F_am (DESIGN §2).
+      return weight * -c.force_N + (1.0 - weight) * centring();
+    }
+    case Mode::kSafe:
+      return safe_from_N_ * weight;
+    case Mode::kDisarmed:
+    case Mode::kArmed:
+    case Mode::kFault:
+      break;
+  }
+  return 0.0;
+}
+
+double NodeCore::slave_command(Mode mode, double position_m, double force_N, bool coupled,
+                               std::uint32_t& flags) noexcept {
+  switch (mode) {
+    case Mode::kAligning:
+    case Mode::kEngaged:
+    case Mode::kClutched:
+    case Mode::kSafe: {
+      // Not coupled (aligning, safe, or the master not engaged yet): the law holds the slave
+      // where it is with its own spring and damping.
+      const bool follow = coupled && (mode == Mode::kEngaged || mode == Mode::kClutched);
+      const control::PeerState master{peer_.state.position_m, peer_.state.velocity_m_per_s, 0.0,
+                                      peer_.state.clutched, follow};
+      const control::Command c = slave_law_->step(position_m, force_N, master);
+      flags |= law_flags(c.flags);
+      return c.force_N;
+    }
+    case Mode::kDisarmed:
+    case Mode::kArmed:
+    case Mode::kFault:
+      break;
+  }
+  return 0.0;
+}
+
+void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) noexcept {
+  ++sequence_;
+  const bool master = settings_.role == Role::kMaster;
+  const double alpha = settings_.law.scaling.position;
+
+  device::Sample sample{};
+  const device::Status read = device_.read(sample);
+  const bool device_fault = !read.ok() || (sample.flags & device::SampleFlags::kFault) != 0;
+  const double velocity_m_per_s = velocity_.step(sample.position_m);
+
+  PeerSample incoming{};
+  if (peer_in_.read(incoming)) {
+    if (have_peer_ && incoming.state.session_id != peer_.state.session_id) {
+      ++peer_restarts_;
+      peer_restarted_ = true;
+    }
+    peer_ = incoming;
+    have_peer_ = true;
+    if (incoming.state.last_peer_sequence != 0) {
+      const auto rtt = round_trip_.echoed(incoming.state.last_peer_sequence,
+                                          std::chrono::nanoseconds(incoming.state.peer_age_ns),
+                                          std::chrono::nanoseconds(incoming.arrival_ns));
+      if (rtt && rtt->count() > 0) {
+        round_trip_ns_ = rtt->count();
+        round_trip_hist_.add(*rtt);
+      }
+    }
+  }
+  const std::int64_t peer_age_ns =
+      have_peer_ ? std::max<std::int64_t>(0, now.count() - peer_.arrival_ns) : 0;
+
+  Command command = Command::kNone;
+  if (const std::optional<Command> c = commands_in_.try_pop()) {
+    command = *c;
+    commands_applied_.fetch_add(1, std::memory_order_acq_rel);
+  }
+  // The clutch is the master's: the slave holds by itself while the master indexes.
+  if (!master && (command == Command::kClutch || command == Command::kUnclutch)) {
+    command = Command::kNone;
+  }
+
+  const double own_m = sample.position_m;
+  const double gap_m = have_peer_ ? (master ? alpha * own_m - peer_.state.position_m
+                                            : alpha * peer_.state.position_m - own_m)
+                                  : 0.0;
+  CycleInputs in;
+  in.now = now;
+  in.command = command;
+  in.peer_seen = have_peer_;
+  in.peer_age = std::chrono::nanoseconds(peer_age_ns);
+  in.aligned = have_peer_ && std::abs(gap_m) <= settings_.alignment.tolerance_m &&
+               peer_coupling(peer_.state.mode);
+  in.device_fault = device_fault;
+  in.law_fault = master ? master_law_->faulted() : slave_law_->faulted();
+  in.peer_failed = have_peer_ && (peer_down(peer_.state.mode) || peer_restarted_);
+  in.peer_disengaged = have_peer_ && !peer_coupling(peer_.state.mode) && !in.peer_failed;
+  const CycleOutputs out = machine_.step(in);
+  const Mode mode = out.mode;
+
+  if (mode != last_mode_) {
+    if (mode == Mode::kAligning || mode == Mode::kEngaged) {
+      // A fresh law at each stage: no offset, no stale filter state, the coupling fading in.
+      if (master) {
+        master_law_->reset(own_m);
+      } else {
+        slave_law_->reset(own_m);
+      }
+    }
+    if (mode == Mode::kAligning) peer_restarted_ = false;
+    if (mode == Mode::kEngaged && !scene_started_) {
+      device_.on_engaged();
+      scene_started_ = true;
+    }
+    if (mode == Mode::kSafe) {
+      safe_since_ = now;
+      safe_from_N_ = last_command_N_;
+    }
+    if (mode == Mode::kFault || mode == Mode::kDisarmed) {
+      if (master) {
+        master_law_->reset(own_m);
+      } else {
+        slave_law_->reset(own_m);
+      }
+    }
+    last_mode_ = mode;
+  }
+  // A restart matters only to a coupling that was in progress.
+  if (mode == Mode::kDisarmed || mode == Mode::kArmed) peer_restarted_ = false;
+
+  double weight = out.coupling_weight;
+  if (mode == Mode::kSafe) {
+    const double ramp = static_cast<double>(settings_.safe_ramp.count());
+    const double since = static_cast<double>((now - safe_since_).count());
+    weight = ramp <= 0.0 ? 0.0 : std::clamp(1.0 - since / ramp, 0.0, 1.0);
+  }
+  const bool coupled = have_peer_ && peer_coupled(peer_.state.mode) && !device_fault;
+  std::uint32_t flags = sample.flags;
+  double force_N = 0.0;
+  if (!device_fault) {
+    force_N = master ? master_command(mode, weight, own_m, velocity_m_per_s, coupled, flags)
+                     : slave_command(mode, own_m, sample.force_N, coupled, flags);
+  }
+  if (!std::isfinite(force_N)) force_N = 0.0;
+  (void)device_.write(device::Command{force_N});
+  last_command_N_ = force_N;
+  (void)device_.tick(settings_.period);
+
+  // Own state to the peer: the master publishes its clutch-corrected position while coupled.
+  transport::NodeStateRecord state;
+  state.session_id = settings_.session_id;
+  state.sequence = sequence_;
+  state.sample_time_ns = now.count();
+  state.last_peer_sequence = have_peer_ ? peer_.state.sequence : 0;
+  state.peer_age_ns = peer_age_ns;
+  state.role = settings_.role;
+  state.mode = wire_mode(mode);
+  state.position_m = own_m;
+  state.velocity_m_per_s = velocity_m_per_s;
+  if (master && (mode == Mode::kEngaged || mode == Mode::kClutched)) {
+    const control::PeerState published = master_law_->peer_state();
+    state.position_m = published.position_m;
+    state.velocity_m_per_s = published.velocity_m_per_s;
+    state.clutched = published.clutched;
+  }
+  state.force_N = master ? 0.0 : sample.force_N;
+  const FixtureParams& fixture =
+      master ? settings_.law.master_fixture : settings_.law.slave_fixture;
+  if (fixture.stiffness_N_per_m > 0.0 && own_m > fixture.position_m) {
+    state.fixture_in_contact = true;
+    state.fixture_penetration_m = own_m - fixture.position_m;
+    state.fixture_force_N = fixture.stiffness_N_per_m * state.fixture_penetration_m;
+  }
+  state.fault_flags = flags;
+  round_trip_.sent(sequence_, now);
+  state_out_.write(state);
+  published_.fetch_add(1, std::memory_order_release);
+  published_.notify_one();
+
+  mode_.store(mode, std::memory_order_release);
+  reason_.store(out.reason, std::memory_order_release);
+
+  CycleRecord rec;
+  rec.sequence = sequence_;
+  rec.sample_time_ns = now.count();
+  rec.mode = mode;
+  rec.reason = out.reason;
+  rec.position_m = own_m;
+  rec.velocity_m_per_s = velocity_m_per_s;
+  rec.force_N = sample.force_N;
+  rec.command_N = force_N;
+  rec.peer_sequence = have_peer_ ? peer_.state.sequence : 0;
+  rec.peer_position_m = have_peer_ ? peer_.state.position_m : 0.0;
+  rec.peer_age_ns = peer_age_ns;
+  rec.coupling_weight = weight;
+  rec.flags = flags;
+  rec.round_trip_ns = round_trip_ns_;
+  if (timing != nullptr && timing->cycles() > 0) {
+    rec.wakeup_latency_ns = timing->last_wakeup_latency().count();
+  }
+  (void)telemetry_out_.try_push(rec);
+  if (sequence_ % kStatsEvery == 1) publish_stats(timing, peer_age_ns);
+}
+
+void NodeCore::publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept {
+  LoopSnapshot s;
+  if (timing != nullptr) {
+    s.cycles = timing->cycles();
+    s.overruns = timing->overruns();
+    s.wakeup_p50_ns = timing->wakeup_latency().quantile(0.5).count();
+    s.wakeup_p99_ns = timing->wakeup_latency().quantile(0.99).count();
+    s.wakeup_p999_ns = timing->wakeup_latency().quantile(0.999).count();
+    s.wakeup_max_ns = timing->wakeup_latency().max().count();
+    s.compute_p50_ns = timing->compute_time().quantile(0.5).count();
+    s.compute_p99_ns = timing->compute_time().quantile(0.99).count();
+    s.compute_max_ns = timing->compute_time().max().count();
+  } else {
+    s.cycles = sequence_;
+  }
+  s.round_trip_ns = round_trip_ns_;
+  s.round_trip_p50_ns = round_trip_hist_.quantile(0.5).count();
+  s.round_trip_p99_ns = round_trip_hist_.quantile(0.99).count();
+  s.peer_restarts = peer_restarts_;
+  s.peer_session_id = have_peer_ ? peer_.state.session_id : 0;
+  s.peer_age_ns = peer_age_ns;
+  stats_out_.write(s);
+}
+
+}  // namespace teleop::node

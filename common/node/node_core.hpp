@@ -1,0 +1,192 @@
+// The RT half of a node (DESIGN §1, §4; issue 4 "Loop"): one call of step(now) per cycle does
+// read the device's latest sample -> take the newest peer state -> state machine -> control law
+// -> limits -> command -> push own state and a fixed-size telemetry record. It touches only the
+// device and lock-free buffers: the link, command and telemetry threads (node_app) do the
+// sockets, protobuf and logging. Tests call step() with a fake clock.
+//
+// What each mode commands:
+//  - disarmed, armed, fault: 0 N.
+//  - aligning: the slave holds its position (its law with no master: spring and damping to where
+//    it is); the master feels a weak centring spring with damping toward the slave's position
+//    (x_s / alpha), clamped to centring_max_force_N. Both wait until |alpha x_m - x_s| is within
+//    the alignment tolerance and the peer is aligning or engaged.
+//  - engaged (and the master's clutched): the three-channel law, reset at engagement. The
+//    master blends from the centring force to the law's force over engage_ramp; the slave's law
+//    fades its velocity reference and any start-up mismatch in over the same time.
+//  - safe: the master's force ramps linearly from its last value to 0 over safe_ramp; the slave
+//    holds its position with its own gains (spring and damping, no master).
+// The peer counts only while coupled on both sides: a master that is engaged while the slave
+// is still aligning is not yet coupled (its law sees no valid slave), and vice versa.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <optional>
+
+#include "common/control/law_params.hpp"
+#include "common/control/master_law.hpp"
+#include "common/control/slave_law.hpp"
+#include "common/control/velocity_estimator.hpp"
+#include "common/device/haptic_device.hpp"
+#include "common/node/node_state_machine.hpp"
+#include "common/rt/latest_value.hpp"
+#include "common/rt/loop_timing.hpp"
+#include "common/rt/spsc_queue.hpp"
+#include "common/transport/node_state_codec.hpp"
+
+namespace teleop::node {
+
+struct AlignmentParams {
+  double tolerance_m{0.002};
+  double centring_stiffness_N_per_m{30.0};
+  double centring_damping_Ns_per_m{0.3};
+  double centring_max_force_N{0.5};
+};
+
+struct NodeSettings {
+  transport::Role role{transport::Role::kMaster};
+  std::chrono::nanoseconds period{std::chrono::milliseconds{1}};
+  control::LawParams law{};
+  StateMachineParams machine{std::chrono::milliseconds{30}, std::chrono::milliseconds{200}};
+  std::chrono::nanoseconds safe_ramp{std::chrono::milliseconds{10}};
+  AlignmentParams alignment{};
+  std::uint64_t session_id{1};
+};
+
+// A peer state as the link thread accepted it, with its arrival on the monotonic clock.
+struct PeerSample {
+  transport::NodeStateRecord state{};
+  std::int64_t arrival_ns{0};
+};
+
+// Law flag bits of CycleRecord::flags (above the device's SampleFlags bits).
+struct LawFlagBits {
+  static constexpr std::uint32_t kSaturated = 1U << 8;
+  static constexpr std::uint32_t kRateLimited = 1U << 9;
+  static constexpr std::uint32_t kReferenceLimited = 1U << 10;
+  static constexpr std::uint32_t kLimitViolation = 1U << 11;
+  static constexpr std::uint32_t kInputFault = 1U << 12;
+};
+
+// One cycle for telemetry (mirrors teleop.v1.CycleRecord); fixed size.
+struct CycleRecord {
+  std::uint64_t sequence{0};
+  std::int64_t sample_time_ns{0};
+  Mode mode{Mode::kDisarmed};
+  const char* reason{""};  // static string
+  double position_m{0.0};
+  double velocity_m_per_s{0.0};
+  double force_N{0.0};
+  double command_N{0.0};
+  std::uint64_t peer_sequence{0};
+  double peer_position_m{0.0};
+  std::int64_t peer_age_ns{0};
+  double coupling_weight{0.0};
+  std::uint32_t flags{0};
+  std::int64_t wakeup_latency_ns{0};
+  std::int64_t round_trip_ns{0};
+};
+
+// Loop and link statistics the RT thread publishes every kStatsEvery cycles.
+struct LoopSnapshot {
+  std::uint64_t cycles{0};
+  std::uint64_t overruns{0};
+  std::int64_t wakeup_p50_ns{0};
+  std::int64_t wakeup_p99_ns{0};
+  std::int64_t wakeup_p999_ns{0};
+  std::int64_t wakeup_max_ns{0};
+  std::int64_t compute_p50_ns{0};
+  std::int64_t compute_p99_ns{0};
+  std::int64_t compute_max_ns{0};
+  std::int64_t round_trip_ns{0};
+  std::int64_t round_trip_p50_ns{0};
+  std::int64_t round_trip_p99_ns{0};
+  std::uint64_t peer_restarts{0};
+  std::uint64_t peer_session_id{0};
+  std::int64_t peer_age_ns{0};
+};
+
+class NodeCore {
+ public:
+  static constexpr std::size_t kTelemetryCapacity = 4096;
+  static constexpr std::uint64_t kStatsEvery = 50;
+
+  // The device must be configured and activated. Throws std::invalid_argument (bad law params).
+  NodeCore(const NodeSettings& settings, device::HapticDevice& device);
+
+  // One cycle at `now` (its deadline on the monotonic clock). `timing`: the loop's statistics,
+  // when run by a PeriodicLoop (read on this thread). RT-safe: no allocation, lock, I/O or throw.
+  void step(std::chrono::nanoseconds now, const rt::LoopTiming* timing = nullptr) noexcept;
+
+  // Link thread -> RT: the newest accepted peer state.
+  [[nodiscard]] rt::LatestValue<PeerSample>& peer_in() noexcept { return peer_in_; }
+  // Command thread -> RT: one command per cycle is applied, in order. Returns false when full.
+  [[nodiscard]] bool post_command(Command command) noexcept;
+  // Commands applied so far (the command thread waits for its ticket before replying).
+  [[nodiscard]] std::uint64_t commands_posted() const noexcept {
+    return commands_posted_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] std::uint64_t commands_applied() const noexcept {
+    return commands_applied_.load(std::memory_order_acquire);
+  }
+  // RT -> sender thread: own state to send, and a counter bumped (and notified) per cycle.
+  [[nodiscard]] rt::LatestValue<transport::NodeStateRecord>& state_out() noexcept {
+    return state_out_;
+  }
+  [[nodiscard]] std::atomic<std::uint32_t>& state_published() noexcept { return published_; }
+  // RT -> telemetry thread.
+  [[nodiscard]] rt::SpscQueue<CycleRecord, kTelemetryCapacity>& telemetry_out() noexcept {
+    return telemetry_out_;
+  }
+  [[nodiscard]] rt::LatestValue<LoopSnapshot>& stats_out() noexcept { return stats_out_; }
+  // The mode and its reason as of the last cycle (any thread).
+  [[nodiscard]] Mode mode() const noexcept { return mode_.load(std::memory_order_acquire); }
+  [[nodiscard]] const char* mode_reason() const noexcept {
+    return reason_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] const NodeSettings& settings() const noexcept { return settings_; }
+
+ private:
+  [[nodiscard]] double master_command(Mode mode, double weight, double position_m,
+                                      double velocity_m_per_s, bool coupled,
+                                      std::uint32_t& flags) noexcept;
+  [[nodiscard]] double slave_command(Mode mode, double position_m, double force_N, bool coupled,
+                                     std::uint32_t& flags) noexcept;
+  void publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept;
+
+  NodeSettings settings_;
+  device::HapticDevice& device_;
+  NodeStateMachine machine_;
+  std::optional<control::MasterLaw> master_law_{};
+  std::optional<control::SlaveLaw> slave_law_{};
+  control::VelocityEstimator velocity_;
+  transport::RoundTripEstimator round_trip_{};
+  rt::LatencyHistogram round_trip_hist_{};
+
+  rt::LatestValue<PeerSample> peer_in_{};
+  rt::SpscQueue<Command, 64> commands_in_{};
+  std::atomic<std::uint64_t> commands_posted_{0};
+  std::atomic<std::uint64_t> commands_applied_{0};
+  rt::LatestValue<transport::NodeStateRecord> state_out_{};
+  std::atomic<std::uint32_t> published_{0};
+  rt::SpscQueue<CycleRecord, kTelemetryCapacity> telemetry_out_{};
+  rt::LatestValue<LoopSnapshot> stats_out_{};
+  std::atomic<Mode> mode_{Mode::kDisarmed};
+  std::atomic<const char*> reason_{"start"};
+
+  // RT-thread state.
+  std::uint64_t sequence_{0};
+  bool have_peer_{false};
+  PeerSample peer_{};
+  std::uint64_t peer_restarts_{0};
+  bool peer_restarted_{false};  // since the last coupling began
+  std::int64_t round_trip_ns_{0};
+  Mode last_mode_{Mode::kDisarmed};
+  std::chrono::nanoseconds safe_since_{0};
+  double last_command_N_{0.0};
+  double safe_from_N_{0.0};
+  bool scene_started_{false};
+};
+
+}  // namespace teleop::node

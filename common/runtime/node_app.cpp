@@ -1,0 +1,359 @@
+#include "common/runtime/node_app.hpp"
+
+#include <signal.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <sys/random.h>
+
+#include <iostream>
+#include <optional>
+#include <stdexcept>
+#include <zmq.hpp>
+
+#include "common/device/sim_device.hpp"
+#include "common/rt/cpu_dma_latency.hpp"
+#include "common/transport/zap_handler.hpp"
+#include "common/transport/zmq_security.hpp"
+#include "common/transport/zmq_sockets.hpp"
+#include "teleop/v1/telemetry.pb.h"
+
+namespace teleop::runtime {
+namespace {
+
+using namespace std::chrono_literals;
+using transport::Role;
+
+v1::NodeMode to_proto(node::Mode m) { return static_cast<v1::NodeMode>(static_cast<int>(m) + 1); }
+v1::NodeRole to_proto(Role r) {
+  return r == Role::kMaster ? v1::MASTER
+                            : (r == Role::kSlave ? v1::SLAVE : v1::NODE_ROLE_UNSPECIFIED);
+}
+
+std::optional<node::Command> to_command(v1::NodeCommand::Kind k) {
+  switch (k) {
+    case v1::NodeCommand::ARM:
+      return node::Command::kArm;
+    case v1::NodeCommand::ENGAGE:
+      return node::Command::kEngage;
+    case v1::NodeCommand::DISENGAGE:
+      return node::Command::kDisengage;
+    case v1::NodeCommand::CLUTCH:
+      return node::Command::kClutch;
+    case v1::NodeCommand::UNCLUTCH:
+      return node::Command::kUnclutch;
+    case v1::NodeCommand::CLEAR:
+      return node::Command::kClear;
+    case v1::NodeCommand::ESTOP:
+      return node::Command::kEStop;
+    default:
+      return std::nullopt;
+  }
+}
+
+}  // namespace
+
+std::uint64_t random_session_id() {
+  std::uint64_t id = 0;
+  while (id == 0) {
+    if (getrandom(&id, sizeof(id), 0) != static_cast<ssize_t>(sizeof(id))) {
+      throw std::runtime_error("getrandom failed: cannot draw a session id");
+    }
+  }
+  return id;
+}
+
+struct NodeApp::Impl {
+  zmq::context_t ctx{1};
+  std::optional<transport::ZapHandler> zap{};
+  transport::LinkSecurity server_security{};
+  transport::LinkSecurity client_security{};
+  std::optional<zmq::socket_t> state_pub{};
+  std::optional<zmq::socket_t> state_sub{};
+  std::optional<zmq::socket_t> command_rep{};
+  std::optional<zmq::socket_t> telemetry_pub{};
+  std::optional<rt::CpuDmaLatency> dma{};
+  std::unique_ptr<rt::PeriodicLoop> loop{};
+  std::atomic<bool> running{false};
+  std::thread sender{};
+  std::thread receiver{};
+  std::thread commands{};
+  std::thread telemetry{};
+
+  // Link statistics the receiver keeps (read by the telemetry thread).
+  std::atomic<std::uint64_t> accepted{0};
+  std::array<std::atomic<std::uint64_t>, static_cast<std::size_t>(transport::Rejection::kCount)>
+      rejected{};
+  std::atomic<std::uint64_t> lost{0};
+};
+
+NodeApp::NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDevice> device,
+                 NodeAppOptions options)
+    : setup_(std::move(setup)), device_(std::move(device)), options_(std::move(options)) {
+  if (!device_) throw std::invalid_argument("node needs a device");
+  if (setup_.settings.session_id == 0) setup_.settings.session_id = random_session_id();
+  core_ = std::make_unique<node::NodeCore>(setup_.settings, *device_);
+  impl_ = std::make_unique<Impl>();
+}
+
+NodeApp::~NodeApp() { stop(); }
+
+void NodeApp::start() {
+  Impl& m = *impl_;
+  // Keys first: a bad key file is a setup error, before anything binds.
+  std::optional<transport::CurveKeyPair> own;
+  if (!setup_.keys.secret_key_file.empty()) {
+    own = transport::load_secret_key_file(setup_.keys.secret_key_file);
+    if (!setup_.keys.own_public_key.empty() && own->public_z85 != setup_.keys.own_public_key) {
+      throw std::invalid_argument("secret key file " + setup_.keys.secret_key_file +
+                                  " does not belong to the public key configured for this node "
+                                  "in security");
+    }
+  }
+  m.server_security.insecure = setup_.keys.insecure;
+  m.server_security.own = own;
+  m.server_security.allowed_client_keys = setup_.keys.allowed_client_keys;
+  m.client_security.insecure = setup_.keys.insecure;
+  m.client_security.own = own;
+  if (!setup_.keys.peer_public_key.empty()) {
+    m.client_security.server_public_key = setup_.keys.peer_public_key;
+  }
+  m.zap.emplace(m.ctx);
+  m.state_pub.emplace(
+      transport::make_state_publisher(m.ctx, setup_.endpoints.state, m.server_security));
+  m.command_rep.emplace(
+      transport::make_command_server(m.ctx, setup_.endpoints.command, m.server_security));
+  m.telemetry_pub.emplace(
+      transport::make_telemetry_publisher(m.ctx, setup_.endpoints.telemetry, m.server_security));
+  m.state_sub.emplace(
+      transport::make_state_subscriber(m.ctx, setup_.endpoints.peer_state, m.client_security));
+
+  if (setup_.cpu_dma_latency_us >= 0) {
+    m.dma.emplace(setup_.cpu_dma_latency_us);
+    if (m.dma->refusal()) {
+      if (setup_.rt.required) {
+        throw std::runtime_error("real-time settings refused (rt.required is set):\n  " +
+                                 *m.dma->refusal());
+      }
+      refused_.push_back(*m.dma->refusal());
+    }
+  }
+
+  m.running = true;
+  node::NodeCore& core = *core_;
+  // Sender: one send per loop cycle, woken by the loop's counter (a futex wake, no lock).
+  m.sender = std::thread([this, &m, &core] {
+    std::uint32_t seen = core.state_published().load(std::memory_order_acquire);
+    transport::NodeStateRecord state;
+    while (m.running.load()) {
+      core.state_published().wait(seen, std::memory_order_acquire);
+      seen = core.state_published().load(std::memory_order_acquire);
+      if (!m.running.load()) break;
+      if (!core.state_out().read(state)) continue;
+      const std::string bytes = transport::encode(state);
+      (void)m.state_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+    }
+  });
+  // Receiver: every frame that arrived goes through the filter (each one counted); only the
+  // newest accepted state reaches the loop, so it never works through a backlog.
+  m.receiver = std::thread([this, &m, &core] {
+    const Role expected = setup_.settings.role == Role::kMaster ? Role::kSlave : Role::kMaster;
+    transport::PeerStateFilter filter(expected);
+    zmq::message_t frame;
+    while (m.running.load()) {
+      zmq::pollitem_t item{m.state_sub->handle(), 0, ZMQ_POLLIN, 0};
+      try {
+        if (zmq::poll(&item, 1, 20ms) <= 0) continue;
+      } catch (const zmq::error_t&) {
+        continue;
+      }
+      std::optional<node::PeerSample> newest;
+      while (m.state_sub->recv(frame, zmq::recv_flags::dontwait)) {
+        const auto arrival = rt::PeriodicLoop::monotonic_now();
+        const auto accepted =
+            filter.accept(std::string_view(static_cast<const char*>(frame.data()), frame.size()));
+        if (!accepted) continue;
+        if (accepted->new_session) {
+          spdlog::info("peer {} session {:016x}", expected == Role::kMaster ? "master" : "slave",
+                       accepted->record.session_id);
+        }
+        newest = node::PeerSample{accepted->record, arrival.count()};
+      }
+      if (newest) core.peer_in().write(*newest);
+      for (std::size_t i = 0; i < m.rejected.size(); ++i) {
+        m.rejected[i].store(filter.rejected(static_cast<transport::Rejection>(i)));
+      }
+      m.accepted.store(filter.accepted());
+      m.lost.store(filter.lost());
+    }
+  });
+  // Commands: apply through the loop, reply with the mode the loop reached.
+  m.commands = std::thread([this, &m, &core] {
+    while (m.running.load()) {
+      zmq::pollitem_t item{m.command_rep->handle(), 0, ZMQ_POLLIN, 0};
+      if (zmq::poll(&item, 1, 50ms) <= 0) continue;
+      zmq::message_t request;
+      if (!m.command_rep->recv(request, zmq::recv_flags::dontwait)) continue;
+      v1::NodeCommand cmd;
+      v1::NodeCommandReply reply;
+      reply.set_role(to_proto(setup_.settings.role));
+      if (!cmd.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
+        reply.set_ok(false);
+        reply.set_message("malformed command");
+      } else if (cmd.kind() == v1::NodeCommand::STATUS) {
+        reply.set_ok(true);
+      } else if (cmd.kind() == v1::NodeCommand::SHUTDOWN) {
+        shutdown_.store(true);
+        reply.set_ok(true);
+        reply.set_message("shutting down");
+      } else if (const auto c = to_command(cmd.kind())) {
+        if (!core.post_command(*c)) {
+          reply.set_ok(false);
+          reply.set_message("command queue full");
+        } else {
+          const std::uint64_t ticket = core.commands_posted();
+          const auto deadline = std::chrono::steady_clock::now() + 500ms;
+          while (core.commands_applied() < ticket && std::chrono::steady_clock::now() < deadline) {
+            std::this_thread::sleep_for(200us);
+          }
+          // One more cycle so the mode reflects the command.
+          const std::uint32_t cycle = core.state_published().load();
+          const auto until = std::chrono::steady_clock::now() + 100ms;
+          while (core.state_published().load() == cycle &&
+                 std::chrono::steady_clock::now() < until) {
+            std::this_thread::sleep_for(100us);
+          }
+          reply.set_ok(core.commands_applied() >= ticket);
+          if (!reply.ok()) reply.set_message("the loop did not take the command within 500 ms");
+        }
+        spdlog::info("command {} -> {} ({})", v1::NodeCommand::Kind_Name(cmd.kind()),
+                     node::to_string(core.mode()), core.mode_reason());
+      } else {
+        reply.set_ok(false);
+        reply.set_message("unknown command");
+      }
+      reply.set_mode(to_proto(core.mode()));
+      reply.set_mode_reason(core.mode_reason());
+      const std::string out = reply.SerializeAsString();
+      (void)m.command_rep->send(zmq::buffer(out), zmq::send_flags::dontwait);
+    }
+  });
+  // Telemetry: every cycle, batched; mode changes logged.
+  m.telemetry = std::thread([this, &m, &core] {
+    const auto period =
+        std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
+    auto next = std::chrono::steady_clock::now() + period;
+    node::LoopSnapshot stats{};
+    node::Mode last_mode = node::Mode::kDisarmed;
+    v1::Telemetry t;
+    while (m.running.load()) {
+      std::this_thread::sleep_until(next);
+      next += period;
+      t.Clear();
+      t.set_session_id(setup_.settings.session_id);
+      t.set_role(to_proto(setup_.settings.role));
+      t.set_device(setup_.device_kind == device::DeviceKind::kSim ? "sim" : "usb");
+      while (const auto rec = core.telemetry_out().try_pop()) {
+        v1::CycleRecord* c = t.add_cycles();
+        c->set_sequence(rec->sequence);
+        c->set_sample_time_ns(rec->sample_time_ns);
+        c->set_mode(to_proto(rec->mode));
+        c->set_position_m(rec->position_m);
+        c->set_velocity_m_per_s(rec->velocity_m_per_s);
+        c->set_force_n(rec->force_N);
+        c->set_command_n(rec->command_N);
+        c->set_peer_sequence(rec->peer_sequence);
+        c->set_peer_position_m(rec->peer_position_m);
+        c->set_peer_age_ns(rec->peer_age_ns);
+        c->set_coupling_weight(rec->coupling_weight);
+        c->set_flags(rec->flags);
+        c->set_wakeup_latency_ns(rec->wakeup_latency_ns);
+        c->set_round_trip_ns(rec->round_trip_ns);
+        if (rec->mode != last_mode) {
+          spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
+                       rec->reason);
+          last_mode = rec->mode;
+        }
+      }
+      (void)core.stats_out().read(stats);
+      t.set_mode(to_proto(core.mode()));
+      t.set_mode_reason(core.mode_reason());
+      t.set_sent_time_ns(rt::PeriodicLoop::monotonic_now().count());
+      t.set_cycles_dropped(core.telemetry_out().dropped());
+      v1::LoopStats* l = t.mutable_loop();
+      l->set_period_s(std::chrono::duration<double>(setup_.settings.period).count());
+      l->set_cycles(stats.cycles);
+      l->set_overruns(stats.overruns);
+      l->set_wakeup_p50_ns(stats.wakeup_p50_ns);
+      l->set_wakeup_p99_ns(stats.wakeup_p99_ns);
+      l->set_wakeup_p999_ns(stats.wakeup_p999_ns);
+      l->set_wakeup_max_ns(stats.wakeup_max_ns);
+      l->set_compute_p50_ns(stats.compute_p50_ns);
+      l->set_compute_p99_ns(stats.compute_p99_ns);
+      l->set_compute_max_ns(stats.compute_max_ns);
+      v1::LinkStats* k = t.mutable_link();
+      using R = transport::Rejection;
+      auto rej = [&m](R r) { return m.rejected[static_cast<std::size_t>(r)].load(); };
+      k->set_accepted(m.accepted.load());
+      k->set_rejected_malformed(rej(R::kMalformed));
+      k->set_rejected_non_finite(rej(R::kNonFinite));
+      k->set_rejected_wrong_role(rej(R::kWrongRole));
+      k->set_rejected_stale(rej(R::kStale));
+      k->set_rejected_wrong_session(rej(R::kWrongSession));
+      k->set_lost(m.lost.load());
+      const double expected = static_cast<double>(m.accepted.load() + m.lost.load());
+      k->set_loss_fraction(expected > 0 ? static_cast<double>(m.lost.load()) / expected : 0.0);
+      k->set_round_trip_ns(stats.round_trip_ns);
+      k->set_round_trip_p50_ns(stats.round_trip_p50_ns);
+      k->set_round_trip_p99_ns(stats.round_trip_p99_ns);
+      k->set_round_trip_samples(transport::RoundTripEstimator::samples(
+          std::chrono::nanoseconds(stats.round_trip_ns), setup_.settings.period));
+      k->set_one_way_latency_ns(stats.round_trip_ns / 2);
+      k->set_peer_session_id(stats.peer_session_id);
+      k->set_peer_restarts(stats.peer_restarts);
+      k->set_peer_age_ns(stats.peer_age_ns);
+      v1::RtStatus* r = t.mutable_rt();
+      r->set_fifo_priority(setup_.rt.fifo_priority);
+      r->set_memory_locked(setup_.rt.lock_memory);
+      r->set_cpu(setup_.rt.cpu);
+      r->set_cpu_dma_latency_us(m.dma && m.dma->held() ? setup_.cpu_dma_latency_us : -1);
+      for (const std::string& s : refused_) r->add_refused(s);
+      const std::string bytes = t.SerializeAsString();
+      (void)m.telemetry_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+    }
+  });
+
+  const auto hook = options_.after_step;
+  m.loop = std::make_unique<rt::PeriodicLoop>(setup_.settings.period, setup_.rt,
+                                              [this, hook](std::chrono::nanoseconds deadline) {
+                                                core_->step(deadline, &impl_->loop->timing());
+                                                if (hook) hook();
+                                              });
+  try {
+    m.loop->start();
+  } catch (...) {
+    stop();
+    throw;
+  }
+  for (const std::string& s : m.loop->refused()) refused_.push_back(s);
+  for (const std::string& s : refused_) spdlog::warn("real-time setting refused: {}", s);
+}
+
+void NodeApp::stop() {
+  if (!impl_) return;
+  Impl& m = *impl_;
+  if (m.loop) m.loop->stop();
+  (void)device_->write(device::Command{0.0});
+  (void)device_->deactivate();
+  m.running = false;
+  core_->state_published().fetch_add(1);
+  core_->state_published().notify_all();
+  for (std::thread* t : {&m.sender, &m.receiver, &m.commands, &m.telemetry}) {
+    if (t->joinable()) t->join();
+  }
+  m.state_pub.reset();
+  m.state_sub.reset();
+  m.command_rep.reset();
+  m.telemetry_pub.reset();
+}
+
+}  // namespace teleop::runtime

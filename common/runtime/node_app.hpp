@@ -1,0 +1,75 @@
+// A node process (teleop-master, teleop-slave): the RT loop around NodeCore and the threads
+// that keep sockets, protobuf and logging off it (DESIGN §1; issue 4):
+//  - loop:      PeriodicLoop at sample_rate_hz running NodeCore::step (RT settings applied);
+//  - sender:    woken by the loop each cycle, encodes the newest own state and publishes it;
+//  - receiver:  takes the newest peer state (conflated), drops and counts bad ones, hands the
+//               good ones to the loop with their arrival time;
+//  - commands:  the command endpoint (arm, engage, ..., e-stop, status); replies once the loop
+//               has applied the command;
+//  - telemetry: every cycle's record, batched at telemetry_rate_hz, with loop and link stats.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "common/config/node_loader.hpp"
+#include "common/device/haptic_device.hpp"
+#include "common/node/node_core.hpp"
+#include "common/rt/periodic_loop.hpp"
+
+namespace teleop::runtime {
+
+struct NodeAppOptions {
+  // Called on the RT thread after every step (tests count the loop's allocations with it).
+  std::function<void()> after_step{};
+};
+
+class NodeApp {
+ public:
+  // Takes a configured, activated device. Throws on bad settings.
+  NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDevice> device,
+          NodeAppOptions options = {});
+  ~NodeApp();
+  NodeApp(const NodeApp&) = delete;
+  NodeApp& operator=(const NodeApp&) = delete;
+
+  // Binds and connects every socket, starts the threads and the loop. Throws (naming the
+  // endpoint or the refused RT setting) when it cannot.
+  void start();
+  // Stops the loop first (the device goes to 0 N), then the threads. Idempotent.
+  void stop();
+
+  [[nodiscard]] node::NodeCore& core() noexcept { return *core_; }
+  [[nodiscard]] const config::NodeSetup& setup() const noexcept { return setup_; }
+  [[nodiscard]] std::uint64_t session_id() const noexcept { return setup_.settings.session_id; }
+  // RT settings the kernel refused (after start()).
+  [[nodiscard]] const std::vector<std::string>& refused() const noexcept { return refused_; }
+  // Set when a SHUTDOWN command arrived.
+  [[nodiscard]] bool shutdown_requested() const noexcept { return shutdown_.load(); }
+
+ private:
+  struct Impl;
+  config::NodeSetup setup_;
+  std::unique_ptr<device::HapticDevice> device_;
+  NodeAppOptions options_;
+  std::unique_ptr<node::NodeCore> core_;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::string> refused_{};
+  std::atomic<bool> shutdown_{false};
+};
+
+// main() of teleop-master / teleop-slave: `NAME CONFIG [--set PATH=VALUE]...`. Runs until
+// SIGINT/SIGTERM or a SHUTDOWN command; returns the exit code (1: configuration, device or
+// endpoint error, with the reason on stderr).
+int run_node_main(transport::Role role, int argc, char** argv);
+
+// A random non-zero 64-bit session id (getrandom).
+[[nodiscard]] std::uint64_t random_session_id();
+
+}  // namespace teleop::runtime

@@ -1,0 +1,113 @@
+// main() of the node processes: configuration -> device -> NodeApp, until a signal or SHUTDOWN.
+#include <signal.h>
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "common/config/config_loader.hpp"
+#include "common/config/node_loader.hpp"
+#include "common/device/sim_device.hpp"
+#include "common/device/usb_device.hpp"
+#include "common/runtime/node_app.hpp"
+
+namespace teleop::runtime {
+namespace {
+
+void usage(std::ostream& os, const char* name) {
+  os << "usage: " << name << " CONFIG [--set PATH=VALUE]...\n\n"
+     << "Runs this side of the teleoperator described by CONFIG (a SystemConfig in protobuf text\n"
+        "format): its device, its 1 kHz loop, its link to the peer and its command and telemetry\n"
+        "endpoints. Stops on SIGINT/SIGTERM or a shutdown command.\n";
+}
+
+// Builds the device the configuration names; configure() and activate() errors name it.
+std::unique_ptr<device::HapticDevice> open_device(const config::NodeSetup& setup) {
+  device::UsbDeviceConfig usb;
+  usb.vendor_id = static_cast<std::uint16_t>(setup.usb.vendor_id);
+  usb.product_id = static_cast<std::uint16_t>(setup.usb.product_id);
+  usb.watchdog = std::chrono::milliseconds(static_cast<long>(std::lround(setup.usb.watchdog_ms)));
+  device::MakeDeviceResult made = device::make_device(setup.device_kind, setup.sim, usb);
+  if (!made.status.ok() || !made.device) {
+    throw std::runtime_error(std::string("device: ") + made.status.message);
+  }
+  if (const device::Status s = made.device->configure(); !s.ok()) {
+    throw std::runtime_error(std::string("device: ") + s.message);
+  }
+  if (const device::Status s = made.device->activate(); !s.ok()) {
+    throw std::runtime_error(std::string("device: ") + s.message);
+  }
+  return std::move(made.device);
+}
+
+}  // namespace
+
+int run_node_main(transport::Role role, int argc, char** argv) {
+  const char* name = role == transport::Role::kMaster ? "teleop-master" : "teleop-slave";
+  std::vector<std::string> args(argv + 1, argv + argc);
+  std::string config_path;
+  std::vector<std::string> overrides;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--help" || args[i] == "-h") {
+      usage(std::cout, name);
+      return 0;
+    }
+    if (args[i] == "--set" && i + 1 < args.size()) {
+      overrides.push_back(args[++i]);
+    } else if (args[i].rfind("--set=", 0) == 0) {
+      overrides.push_back(args[i].substr(6));
+    } else if (config_path.empty() && args[i].rfind("--", 0) != 0) {
+      config_path = args[i];
+    } else {
+      std::cerr << name << ": unexpected argument '" << args[i] << "'\n";
+      usage(std::cerr, name);
+      return 2;
+    }
+  }
+  if (config_path.empty()) {
+    usage(std::cerr, name);
+    return 2;
+  }
+  spdlog::set_pattern(std::string("[%H:%M:%S.%e] [") + name + "] [%^%l%$] %v");
+
+  // Signals are taken by this thread only: block them before any thread starts.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  std::unique_ptr<NodeApp> app;
+  try {
+    const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
+    config::NodeSetup setup = config::to_node_setup(loaded, role);
+    setup.settings.session_id = random_session_id();
+    app = std::make_unique<NodeApp>(setup, open_device(setup));
+    app->start();
+  } catch (const config::ConfigError& e) {
+    std::cerr << name << ": invalid configuration:\n" << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    return 1;
+  }
+  const config::NodeSetup& s = app->setup();
+  spdlog::info("session {:016x}: state {} (peer {}), commands {}, telemetry {}, {:.0f} Hz",
+               app->session_id(), s.endpoints.state, s.endpoints.peer_state, s.endpoints.command,
+               s.endpoints.telemetry, 1e9 / static_cast<double>(s.settings.period.count()));
+  const timespec poll{0, 100'000'000};
+  while (!app->shutdown_requested()) {
+    const int sig = sigtimedwait(&signals, nullptr, &poll);
+    if (sig == SIGINT || sig == SIGTERM) {
+      spdlog::info("signal {}: stopping", sig);
+      break;
+    }
+  }
+  app->stop();
+  spdlog::info("stopped");
+  return 0;
+}
+
+}  // namespace teleop::runtime

@@ -1,0 +1,141 @@
+#include "common/transport/zmq_sockets.hpp"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <limits>
+#include <stdexcept>
+
+namespace teleop::transport {
+
+namespace {
+
+int to_option_ms(std::chrono::milliseconds d) {
+  return static_cast<int>(
+      std::min<std::chrono::milliseconds::rep>(d.count(), std::numeric_limits<int>::max()));
+}
+
+void set_common(zmq::socket_t& socket) {
+  socket.set(zmq::sockopt::linger, 0);
+  socket.set(zmq::sockopt::heartbeat_ivl, to_option_ms(kHeartbeatInterval));
+  socket.set(zmq::sockopt::heartbeat_timeout, to_option_ms(kHeartbeatTimeout));
+}
+
+void set_reconnect(zmq::socket_t& socket) {
+  socket.set(zmq::sockopt::reconnect_ivl, to_option_ms(kReconnectInterval));
+  socket.set(zmq::sockopt::reconnect_ivl_max, to_option_ms(kReconnectIntervalMax));
+}
+
+}  // namespace
+
+zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                   const LinkSecurity& security) {
+  zmq::socket_t socket(ctx, zmq::socket_type::pub);
+  set_common(socket);
+  socket.set(zmq::sockopt::conflate, true);
+  // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM without
+  // conflation would drop the newest; see the header).
+  socket.set(zmq::sockopt::xpub_nodrop, false);
+  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
+  socket.bind(std::string(endpoint));
+  return socket;
+}
+
+zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                       const LinkSecurity& security) {
+  zmq::socket_t socket(ctx, zmq::socket_type::pub);
+  set_common(socket);
+  socket.set(zmq::sockopt::sndhwm, 1000);
+  socket.set(zmq::sockopt::xpub_nodrop, false);
+  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
+  socket.bind(std::string(endpoint));
+  return socket;
+}
+
+zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,
+                                    const LinkSecurity& security) {
+  zmq::socket_t socket(ctx, zmq::socket_type::sub);
+  set_common(socket);
+  set_reconnect(socket);
+  // Not ZMQ_CONFLATE (see the header: libzmq 4.3.4 strands and leaks with it on a SUB).
+  socket.set(zmq::sockopt::rcvhwm, kStateReceiveHwm);
+  socket.set(zmq::sockopt::subscribe, "");
+  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kClient, security);
+  socket.connect(std::string(endpoint));
+  return socket;
+}
+
+zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint,
+                                  const LinkSecurity& security) {
+  zmq::socket_t socket(ctx, zmq::socket_type::rep);
+  set_common(socket);
+  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
+  socket.bind(std::string(endpoint));
+  return socket;
+}
+
+zmq::socket_t make_command_client(zmq::context_t& ctx, std::string_view endpoint,
+                                  const LinkSecurity& security, std::chrono::milliseconds timeout) {
+  // Zero or negative would mean "never wait" or "wait forever" to ZeroMQ; neither is a
+  // command timeout.
+  if (timeout <= std::chrono::milliseconds::zero()) {
+    throw std::invalid_argument(
+        fmt::format("{}: command timeout must be positive, got {} ms", endpoint, timeout.count()));
+  }
+  zmq::socket_t socket(ctx, zmq::socket_type::req);
+  set_common(socket);
+  set_reconnect(socket);
+  socket.set(zmq::sockopt::req_relaxed, true);
+  socket.set(zmq::sockopt::req_correlate, true);
+  socket.set(zmq::sockopt::sndtimeo, to_option_ms(timeout));
+  socket.set(zmq::sockopt::rcvtimeo, to_option_ms(timeout));
+  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kClient, security);
+  socket.connect(std::string(endpoint));
+  return socket;
+}
+
+std::string bound_endpoint(const zmq::socket_t& socket) {
+  return socket.get(zmq::sockopt::last_endpoint);
+}
+
+std::optional<std::string> recv_latest(zmq::socket_t& socket, std::chrono::milliseconds timeout) {
+  zmq::pollitem_t item{socket.handle(), 0, ZMQ_POLLIN, 0};
+  try {
+    if (zmq::poll(&item, 1, timeout) == 0) return std::nullopt;
+  } catch (const zmq::error_t& e) {
+    if (e.num() == EINTR) return std::nullopt;
+    throw;
+  }
+  std::optional<std::string> latest;
+  zmq::message_t message;
+  while (true) {
+    zmq::recv_result_t got;
+    try {
+      got = socket.recv(message, zmq::recv_flags::dontwait);
+    } catch (const zmq::error_t& e) {
+      if (e.num() == EINTR) break;
+      throw;
+    }
+    if (!got) break;
+    latest = message.to_string();
+    // Discard the rest of a multipart message (not expected on this link).
+    while (message.more()) {
+      if (!socket.recv(message, zmq::recv_flags::dontwait)) break;
+    }
+  }
+  return latest;
+}
+
+std::optional<std::string> request_reply(zmq::socket_t& client, std::string_view request) {
+  if (!client.send(zmq::buffer(request), zmq::send_flags::none)) return std::nullopt;
+  zmq::message_t reply;
+  if (!client.recv(reply, zmq::recv_flags::none)) return std::nullopt;
+  std::string text = reply.to_string();
+  while (reply.more()) {
+    if (!client.recv(reply, zmq::recv_flags::none)) break;
+  }
+  return text;
+}
+
+}  // namespace teleop::transport

@@ -1,0 +1,101 @@
+// The node link's sockets, configured once here so every process gets the same behaviour.
+// Used on the link thread only: ZeroMQ allocates for messages over 33 bytes, so none of this
+// runs on the RT thread (DESIGN §1).
+//
+// Why the options differ from ZeroMQ's defaults:
+//  - State (PUB/SUB) is a latest-value stream: a control law wants the newest peer state,
+//    and every queued older one is pure delay. The publisher sets ZMQ_CONFLATE (one slot per
+//    subscriber, the newest replaces the older), so a slow or stalled link never builds a
+//    backlog of stale states at the sender (the default SNDHWM of 1000 would be a second of
+//    them at 1 kHz). A small SNDHWM is not a substitute: a full PUB queue drops the *newest*
+//    messages (measured: a burst of 1000 with SNDHWM 2 delivers message 0 and nothing after).
+//    CONFLATE supports single-part messages only, which is what NodeState is, and it also
+//    conflates the PUB's inbound subscriptions: fine, our subscribers subscribe once.
+//    ZMQ_XPUB_NODROP stays off so a slow subscriber can never block the sender.
+//  - The subscriber does NOT set ZMQ_CONFLATE, although that looks natural: in libzmq 4.3.4 a
+//    conflated SUB strands the last message of a burst (its double buffer, src/dbuffer.hpp,
+//    skips a write that meets the reader holding the lock, and the reader is then never
+//    woken) and, under AddressSanitizer, leaks a pipe pair at close in a few percent of runs.
+//    Instead its queue is sized for what can arrive between two drains (a TCP backlog after
+//    a stall included; a full queue would drop the newest) and recv_latest() drains it,
+//    returning the newest and discarding the rest.
+//    Known limit of the publisher's conflated slot (same double buffer): the newest message
+//    can be held back until the next send replaces it. A node publishes every period, which
+//    bounds this to one period (visible as peer age); a stream that stops cannot count on
+//    its last message arriving.
+//  - ZMQ_LINGER 0 everywhere: the default (infinite) makes closing the context wait for
+//    unsent messages to a peer that may never come back, hanging process exit; a stale state
+//    or command is worthless after exit anyway.
+//  - Subscribers and clients reconnect after 10 ms, backing off to 100 ms (default: every 100 ms,
+//    no back-off), so a restarted peer is picked up within a few control periods.
+//  - ZMTP heartbeats (100 ms interval, 300 ms timeout) detect a dead TCP peer (cable pulled,
+//    machine powered off) that would otherwise look connected until the kernel gives up,
+//    minutes later; the connecting side then reconnects.
+//  - We never use PAIR: it neither reconnects reliably nor tolerates a second peer.
+//  - The command client is REQ with ZMQ_REQ_RELAXED and ZMQ_REQ_CORRELATE: a plain REQ whose
+//    reply never arrives refuses to send again (EFSM) forever; relaxed lets it send the next
+//    request, correlate discards the late reply to the abandoned one.
+#pragma once
+
+#include <chrono>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <zmq.hpp>
+
+#include "common/transport/zmq_security.hpp"
+
+namespace teleop::transport {
+
+// How long ZMTP heartbeats take to declare a silent peer dead.
+inline constexpr std::chrono::milliseconds kHeartbeatInterval{100};
+inline constexpr std::chrono::milliseconds kHeartbeatTimeout{300};
+inline constexpr std::chrono::milliseconds kReconnectInterval{10};
+inline constexpr std::chrono::milliseconds kReconnectIntervalMax{100};
+// The subscriber's queue: far more than arrives between two drains of a link thread.
+inline constexpr int kStateReceiveHwm = 1000;
+
+// A PUB bound to `endpoint` (server side of the security policy); "tcp://127.0.0.1:*" picks a
+// free port, read back with bound_endpoint(). Throws std::invalid_argument when the policy
+// forbids the setup, zmq::error_t when binding fails.
+[[nodiscard]] zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                                 const LinkSecurity& security);
+
+// A PUB for telemetry (server side): unlike the state link, every message counts (each
+// carries a batch of cycles), so no conflation; SNDHWM 1000 (20 s at 50 Hz) absorbs a slow
+// subscriber, past which ZeroMQ drops for that subscriber only and the node never blocks.
+[[nodiscard]] zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                                     const LinkSecurity& security);
+
+// A SUB connected to `endpoint` (client side), subscribed to everything; read it with
+// recv_latest().
+[[nodiscard]] zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,
+                                                  const LinkSecurity& security);
+
+// A REP bound to `endpoint` (server side) for operator and supervisor commands: one reply per
+// request, in order, which is all a command channel needs.
+[[nodiscard]] zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint,
+                                                const LinkSecurity& security);
+
+// A REQ connected to `endpoint` (client side); a request waits at most `timeout` to be sent
+// and as long again for its reply.
+[[nodiscard]] zmq::socket_t make_command_client(zmq::context_t& ctx, std::string_view endpoint,
+                                                const LinkSecurity& security,
+                                                std::chrono::milliseconds timeout);
+
+// The endpoint a socket actually bound (ZMQ_LAST_ENDPOINT), with the real port for a '*'.
+[[nodiscard]] std::string bound_endpoint(const zmq::socket_t& socket);
+
+// The newest message pending on `socket`, waiting up to `timeout` for the first; everything
+// older that is already queued is drained and discarded. Empty when nothing arrived in time
+// (or the wait was interrupted by a signal). Single-part messages: any further parts of a
+// multipart message are discarded with it.
+[[nodiscard]] std::optional<std::string> recv_latest(zmq::socket_t& socket,
+                                                     std::chrono::milliseconds timeout);
+
+// Sends `request` on a command client and waits for the reply within the socket's timeouts;
+// empty on timeout, after which the socket can send the next request at once.
+[[nodiscard]] std::optional<std::string> request_reply(zmq::socket_t& client,
+                                                       std::string_view request);
+
+}  // namespace teleop::transport

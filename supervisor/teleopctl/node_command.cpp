@@ -1,0 +1,335 @@
+#include "supervisor/teleopctl/node_command.hpp"
+
+#include <fcntl.h>
+#include <fmt/core.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <thread>
+#include <zmq.hpp>
+
+#include "common/config/config_loader.hpp"
+#include "common/config/node_loader.hpp"
+#include "common/transport/zmq_security.hpp"
+#include "common/transport/zmq_sockets.hpp"
+#include "supervisor/teleopctl/cli_args.hpp"
+
+namespace teleop::ctl {
+namespace {
+
+using namespace std::chrono_literals;
+
+const std::map<std::string, v1::NodeCommand::Kind>& command_names() {
+  static const std::map<std::string, v1::NodeCommand::Kind> names{
+      {"arm", v1::NodeCommand::ARM},
+      {"engage", v1::NodeCommand::ENGAGE},
+      {"disengage", v1::NodeCommand::DISENGAGE},
+      {"clutch", v1::NodeCommand::CLUTCH},
+      {"unclutch", v1::NodeCommand::UNCLUTCH},
+      {"clear", v1::NodeCommand::CLEAR},
+      {"estop", v1::NodeCommand::ESTOP},
+      {"e-stop", v1::NodeCommand::ESTOP},
+      {"status", v1::NodeCommand::STATUS},
+      {"shutdown", v1::NodeCommand::SHUTDOWN},
+  };
+  return names;
+}
+
+std::string mode_name(v1::NodeMode m) {
+  std::string s = v1::NodeMode_Name(m);
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+std::string role_name(v1::NodeRole r) {
+  return r == v1::MASTER ? "master" : (r == v1::SLAVE ? "slave" : "node");
+}
+
+volatile sig_atomic_t g_interrupted = 0;
+extern "C" void on_interrupt(int) { g_interrupted = 1; }
+
+// The node binaries: beside teleopctl when installed, or in the build tree.
+std::string find_node_binary(const std::string& name) {
+  if (const char* env =
+          std::getenv(name == "teleop-master" ? "TELEOP_MASTER_BIN" : "TELEOP_SLAVE_BIN")) {
+    return env;
+  }
+  std::error_code ec;
+  const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
+  const std::filesystem::path dir = self.parent_path();
+  const std::string sub = name == "teleop-master" ? "master_node" : "slave_node";
+  for (const std::filesystem::path& p :
+       {dir / name, dir / ".." / ".." / sub / name, dir / ".." / sub / name}) {
+    if (std::filesystem::exists(p, ec)) return std::filesystem::weakly_canonical(p).string();
+  }
+  throw std::runtime_error("cannot find " + name + " beside " + dir.string() + " (set " +
+                           (name == "teleop-master" ? "TELEOP_MASTER_BIN" : "TELEOP_SLAVE_BIN") +
+                           ")");
+}
+
+pid_t spawn(const std::string& binary, const std::vector<std::string>& args) {
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(binary.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(binary.c_str(), argv.data());
+    ::_exit(127);
+  }
+  if (pid < 0) throw std::runtime_error("fork failed");
+  return pid;
+}
+
+}  // namespace
+
+std::string to_endpoint(const std::string& address) {
+  if (address.find("://") != std::string::npos) return address;
+  return "tcp://" + address;
+}
+
+std::optional<v1::NodeCommandReply> send_node_command(const std::string& endpoint,
+                                                      v1::NodeCommand::Kind kind,
+                                                      const NodeClientKeys& keys, int timeout_ms) {
+  zmq::context_t ctx(1);
+  transport::LinkSecurity security;
+  if (!keys.secret_key_file.empty()) {
+    security.own = transport::load_secret_key_file(keys.secret_key_file);
+  }
+  if (!keys.server_key.empty())
+    security.server_public_key = transport::load_public_key(keys.server_key);
+  zmq::socket_t client = transport::make_command_client(ctx, endpoint, security,
+                                                        std::chrono::milliseconds(timeout_ms));
+  v1::NodeCommand c;
+  c.set_kind(kind);
+  const std::optional<std::string> bytes = transport::request_reply(client, c.SerializeAsString());
+  if (!bytes) return std::nullopt;
+  v1::NodeCommandReply reply;
+  if (!reply.ParseFromString(*bytes)) return std::nullopt;
+  return reply;
+}
+
+std::string node_usage() {
+  return "usage: teleopctl node HOST:PORT COMMAND [--key FILE] [--server-key KEY|FILE]\n"
+         "                     [--timeout-ms N]\n\n"
+         "Sends one command straight to one node's command endpoint and prints the mode the node\n"
+         "reached. COMMAND: arm, engage, disengage, clutch, unclutch, clear, estop, status,\n"
+         "shutdown. Off loopback the node requires CURVE: --key is this client's key file\n"
+         "(teleopctl keygen; its public key must be in the configuration's\n"
+         "security.client_public_keys) and --server-key the node's public key.\n"
+         "Exit: 0 taken, 1 error, 2 usage, 3 refused by the node, 4 no reply.\n";
+}
+
+int run_node_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::string> positional;
+  NodeClientKeys keys;
+  int timeout_ms = 2000;
+  ArgCursor cur(args);
+  while (cur.next()) {
+    const std::string& a = cur.arg();
+    if (a == "--key") {
+      keys.secret_key_file = cur.value("--key");
+    } else if (a == "--server-key") {
+      keys.server_key = cur.value("--server-key");
+    } else if (a == "--timeout-ms") {
+      const double t = parse_number(cur.value("--timeout-ms"), "--timeout-ms");
+      if (!(t >= 1.0 && t <= 60000.0)) throw UsageError("--timeout-ms must be in [1, 60000]");
+      timeout_ms = static_cast<int>(t);
+    } else if (a.rfind("--", 0) == 0) {
+      throw UsageError("unknown option '" + a + "'");
+    } else {
+      positional.push_back(a);
+    }
+  }
+  if (positional.size() != 2) throw UsageError("expected HOST:PORT and COMMAND");
+  const auto it = command_names().find(positional[1]);
+  if (it == command_names().end()) throw UsageError("unknown command '" + positional[1] + "'");
+  return run_guarded("node", err, [&] {
+    const std::string endpoint = to_endpoint(positional[0]);
+    const auto reply = send_node_command(endpoint, it->second, keys, timeout_ms);
+    if (!reply) {
+      err << "teleopctl node: no reply from " << endpoint << " within " << timeout_ms
+          << " ms (is the node running? are the keys right?)\n";
+      return kExitNoReply;
+    }
+    out << role_name(reply->role()) << " " << endpoint << ": " << mode_name(reply->mode());
+    if (!reply->mode_reason().empty()) out << " (" << reply->mode_reason() << ")";
+    if (!reply->message().empty()) out << ": " << reply->message();
+    out << "\n";
+    return reply->ok() ? kExitOk : kExitRefused;
+  });
+}
+
+std::string launch_usage() {
+  return "usage: teleopctl launch CONFIG [--set PATH=VALUE]... [--duration S] [--no-engage]\n\n"
+         "Starts teleop-master and teleop-slave on loopback with simulated devices (the scene's\n"
+         "human and environment, when CONFIG has a scene), arms and engages both, and prints\n"
+         "their state once a second until Ctrl-C (or --duration S), then stops both cleanly.\n";
+}
+
+int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::string config_path;
+  std::vector<std::string> overrides;
+  double duration_s = 0.0;
+  bool engage = true;
+  ArgCursor cur(args);
+  while (cur.next()) {
+    const std::string& a = cur.arg();
+    if (a == "--set") {
+      overrides.push_back(cur.value("--set"));
+    } else if (a.rfind("--set=", 0) == 0) {
+      overrides.push_back(a.substr(6));
+    } else if (a == "--duration") {
+      duration_s = parse_number(cur.value("--duration"), "--duration");
+      if (!(duration_s > 0.0)) throw UsageError("--duration must be > 0");
+    } else if (a == "--no-engage") {
+      engage = false;
+    } else if (a.rfind("--", 0) == 0) {
+      throw UsageError("unknown option '" + a + "'");
+    } else if (config_path.empty()) {
+      config_path = a;
+    } else {
+      throw UsageError("unexpected argument '" + a + "'");
+    }
+  }
+  if (config_path.empty()) throw UsageError("expected CONFIG");
+  overrides.push_back("master.device.kind=SIM");
+  overrides.push_back("slave.device.kind=SIM");
+
+  return run_guarded("launch", err, [&]() -> int {
+    // Check the configuration here first: a bad file is reported once, before any process.
+    const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
+    const config::NodeSetup master = config::to_node_setup(loaded, transport::Role::kMaster);
+    const config::NodeSetup slave = config::to_node_setup(loaded, transport::Role::kSlave);
+    for (const std::string& e : {master.endpoints.state, slave.endpoints.state,
+                                 master.endpoints.command, slave.endpoints.command}) {
+      if (!transport::is_loopback_endpoint(e)) {
+        throw std::runtime_error("launch runs both nodes on this machine: endpoint " + e +
+                                 " is not loopback (start teleop-master and teleop-slave on "
+                                 "their machines instead)");
+      }
+    }
+    std::vector<std::string> node_args{config_path};
+    for (const std::string& o : overrides) node_args.push_back("--set=" + o);
+
+    struct sigaction sa {};
+    sa.sa_handler = on_interrupt;
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+    const pid_t master_pid = spawn(find_node_binary("teleop-master"), node_args);
+    const pid_t slave_pid = spawn(find_node_binary("teleop-slave"), node_args);
+    auto stop_all = [&] {
+      ::kill(master_pid, SIGINT);
+      ::kill(slave_pid, SIGINT);
+      int ms = 0;
+      int ss = 0;
+      ::waitpid(master_pid, &ms, 0);
+      ::waitpid(slave_pid, &ss, 0);
+      return (WIFEXITED(ms) && WEXITSTATUS(ms) == 0 && WIFEXITED(ss) && WEXITSTATUS(ss) == 0);
+    };
+
+    zmq::context_t ctx(1);
+    auto subscribe = [&](const std::string& endpoint) {
+      zmq::socket_t s(ctx, zmq::socket_type::sub);
+      s.set(zmq::sockopt::linger, 0);
+      s.set(zmq::sockopt::conflate, 1);
+      s.set(zmq::sockopt::subscribe, "");
+      s.connect(endpoint);
+      return s;
+    };
+    zmq::socket_t master_tel = subscribe(master.endpoints.telemetry);
+    zmq::socket_t slave_tel = subscribe(slave.endpoints.telemetry);
+    std::optional<v1::Telemetry> mt;
+    std::optional<v1::Telemetry> st;
+    auto poll_telemetry = [&] {
+      for (auto [sock, dst] : {std::pair{&master_tel, &mt}, std::pair{&slave_tel, &st}}) {
+        zmq::message_t msg;
+        while (sock->recv(msg, zmq::recv_flags::dontwait)) {
+          v1::Telemetry t;
+          if (t.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) *dst = t;
+        }
+      }
+    };
+    auto wait_until = [&](auto pred, std::chrono::milliseconds bound) {
+      const auto until = std::chrono::steady_clock::now() + bound;
+      while (!g_interrupted && std::chrono::steady_clock::now() < until) {
+        poll_telemetry();
+        if (mt && st && pred()) return true;
+        std::this_thread::sleep_for(10ms);
+      }
+      return false;
+    };
+    auto child_exited = [&] {
+      int status = 0;
+      return ::waitpid(master_pid, &status, WNOHANG) == master_pid ||
+             ::waitpid(slave_pid, &status, WNOHANG) == slave_pid;
+    };
+    const bool linked =
+        wait_until([&] { return mt->link().accepted() > 0 && st->link().accepted() > 0; }, 10s);
+    if (!linked) {
+      const bool exited = child_exited();
+      stop_all();
+      if (g_interrupted) return kExitOk;
+      err << "teleopctl launch: "
+          << (exited ? "a node exited at start (see its messages above)"
+                     : "the nodes did not link within 10 s")
+          << "\n";
+      return kExitError;
+    }
+    out << "master and slave linked: master session " << fmt::format("{:016x}", mt->session_id())
+        << ", slave session " << fmt::format("{:016x}", st->session_id()) << "\n";
+    if (engage) {
+      const NodeClientKeys none;
+      for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+        for (const std::string& e : {master.endpoints.command, slave.endpoints.command}) {
+          const auto reply = send_node_command(e, kind, none, 2000);
+          if (!reply || !reply->ok()) {
+            err << "teleopctl launch: " << v1::NodeCommand::Kind_Name(kind) << " " << e << ": "
+                << (reply ? reply->mode_reason() : std::string("no reply")) << "\n";
+          }
+        }
+      }
+      const bool engaged =
+          wait_until([&] { return mt->mode() == v1::ENGAGED && st->mode() == v1::ENGAGED; }, 10s);
+      out << (engaged ? "engaged" : "not engaged within 10 s") << "\n";
+    }
+    out << "Ctrl-C stops both nodes.\n";
+    const auto start = std::chrono::steady_clock::now();
+    auto next_print = start;
+    while (!g_interrupted && !child_exited()) {
+      poll_telemetry();
+      const auto now = std::chrono::steady_clock::now();
+      if (duration_s > 0.0 && now - start >= std::chrono::duration<double>(duration_s)) break;
+      if (now >= next_print && mt && st) {
+        next_print += 1s;
+        const auto& ml = mt->link();
+        const double x_m =
+            mt->cycles_size() > 0 ? mt->cycles(mt->cycles_size() - 1).position_m() : 0.0;
+        const double x_s =
+            st->cycles_size() > 0 ? st->cycles(st->cycles_size() - 1).position_m() : 0.0;
+        out << fmt::format(
+                   "master {:<9} slave {:<9} x_m {:+8.3f} mm  x_s {:+8.3f} mm  round trip "
+                   "{:.3f} ms ({} samples)  loss {:.4f}  wake-up p99 {:.0f}/{:.0f} us  overruns "
+                   "{}/{}",
+                   mode_name(mt->mode()), mode_name(st->mode()), x_m * 1e3, x_s * 1e3,
+                   static_cast<double>(ml.round_trip_ns()) * 1e-6, ml.round_trip_samples(),
+                   ml.loss_fraction(), static_cast<double>(mt->loop().wakeup_p99_ns()) * 1e-3,
+                   static_cast<double>(st->loop().wakeup_p99_ns()) * 1e-3, mt->loop().overruns(),
+                   st->loop().overruns())
+            << std::endl;
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    const bool clean = stop_all();
+    out << (clean ? "both nodes stopped cleanly" : "a node did not stop cleanly") << "\n";
+    return clean ? kExitOk : kExitError;
+  });
+}
+
+}  // namespace teleop::ctl

@@ -1,0 +1,235 @@
+// Runs the real teleop-master / teleop-slave processes on loopback and watches them through
+// their own telemetry and command endpoints. Waits are for conditions seen in telemetry (with a
+// generous bound against a hang), never for time to pass; deadlines are checked from the
+// nodes' own timestamps.
+#pragma once
+
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+#include <zmq.hpp>
+
+#include "teleop/v1/telemetry.pb.h"
+
+namespace teleop::test {
+
+using namespace std::chrono_literals;
+
+// A free TCP port on 127.0.0.1 (the kernel's choice; released for the node to bind).
+inline int free_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0) std::abort();
+  socklen_t len = sizeof(a);
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  const int port = ntohs(a.sin_port);
+  ::close(fd);
+  return port;
+}
+
+struct Ports {
+  int master_state{free_port()};
+  int slave_state{free_port()};
+  int master_command{free_port()};
+  int slave_command{free_port()};
+  int master_telemetry{free_port()};
+  int slave_telemetry{free_port()};
+};
+
+inline std::string tcp(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
+
+// A node section for loopback on these ports, no real-time scheduling (the tests share two
+// cores with the sanitizer build), every cycle in telemetry at 100 Hz.
+inline std::string node_section(const Ports& p, bool master, const std::string& extra = "") {
+  const int state = master ? p.master_state : p.slave_state;
+  const int command = master ? p.master_command : p.slave_command;
+  const int telemetry = master ? p.master_telemetry : p.slave_telemetry;
+  return "node { state_endpoint: \"" + tcp(state) + "\" command_endpoint: \"" + tcp(command) +
+         "\" telemetry_endpoint: \"" + tcp(telemetry) +
+         "\" telemetry_rate_hz: 100 rt { fifo_priority: 0 lock_memory: false "
+         "cpu_dma_latency_us: -1 } " +
+         extra + " }";
+}
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string tmpl = (std::filesystem::temp_directory_path() / "teleop-nodes-XXXXXX").string();
+    path_ = ::mkdtemp(tmpl.data());
+  }
+  ~TempDir() { std::filesystem::remove_all(path_); }
+  [[nodiscard]] const std::filesystem::path& path() const { return path_; }
+  std::filesystem::path write(const std::string& name, const std::string& text) const {
+    const auto p = path_ / name;
+    std::ofstream(p) << text;
+    return p;
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// A child process with its stdout+stderr in a file.
+class Process {
+ public:
+  Process(const std::string& binary, const std::vector<std::string>& args,
+          const std::filesystem::path& log)
+      : log_(log) {
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::dup2(fd, 1);
+      ::dup2(fd, 2);
+      std::vector<char*> argv;
+      argv.push_back(const_cast<char*>(binary.c_str()));
+      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+      argv.push_back(nullptr);
+      ::execv(binary.c_str(), argv.data());
+      ::_exit(127);
+    }
+  }
+  ~Process() {
+    if (pid_ > 0 && !waited_) {
+      ::kill(pid_, SIGKILL);
+      (void)wait();
+    }
+  }
+  Process(const Process&) = delete;
+  Process& operator=(const Process&) = delete;
+
+  void signal(int sig) const { ::kill(pid_, sig); }
+  // Exit status (or 128 + signal).
+  int wait() {
+    int status = 0;
+    ::waitpid(pid_, &status, 0);
+    waited_ = true;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+  }
+  [[nodiscard]] std::string log() const {
+    std::ifstream in(log_);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+  }
+
+ private:
+  std::filesystem::path log_;
+  pid_t pid_{-1};
+  bool waited_{false};
+};
+
+// Collects every telemetry message of one node on a thread of its own.
+class TelemetryTap {
+ public:
+  TelemetryTap(zmq::context_t& ctx, const std::string& endpoint,
+               std::function<void(zmq::socket_t&)> secure = {})
+      : socket_(ctx, zmq::socket_type::sub) {
+    socket_.set(zmq::sockopt::linger, 0);
+    socket_.set(zmq::sockopt::rcvhwm, 100000);
+    if (secure) secure(socket_);
+    socket_.set(zmq::sockopt::subscribe, "");
+    socket_.connect(endpoint);
+    thread_ = std::thread([this] {
+      while (running_) {
+        zmq::pollitem_t item{socket_.handle(), 0, ZMQ_POLLIN, 0};
+        if (zmq::poll(&item, 1, 20ms) <= 0) continue;
+        zmq::message_t msg;
+        while (socket_.recv(msg, zmq::recv_flags::dontwait)) {
+          v1::Telemetry t;
+          if (!t.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) continue;
+          std::lock_guard lock(mutex_);
+          for (const auto& c : t.cycles()) cycles_.push_back(c);
+          last_ = t;
+          ++messages_;
+        }
+      }
+    });
+  }
+  ~TelemetryTap() {
+    running_ = false;
+    thread_.join();
+  }
+  [[nodiscard]] std::vector<v1::CycleRecord> cycles() const {
+    std::lock_guard lock(mutex_);
+    return cycles_;
+  }
+  [[nodiscard]] std::optional<v1::Telemetry> last() const {
+    std::lock_guard lock(mutex_);
+    return last_;
+  }
+  [[nodiscard]] std::size_t messages() const {
+    std::lock_guard lock(mutex_);
+    return messages_;
+  }
+  [[nodiscard]] std::optional<v1::NodeMode> mode() const {
+    std::lock_guard lock(mutex_);
+    if (!last_) return std::nullopt;
+    return last_->mode();
+  }
+  // Waits (bounded, against a hang) until pred holds on the latest telemetry.
+  bool wait_for(const std::function<bool(const v1::Telemetry&)>& pred,
+                std::chrono::milliseconds bound = 20s) const {
+    const auto until = std::chrono::steady_clock::now() + bound;
+    while (std::chrono::steady_clock::now() < until) {
+      // The predicate may read the tap itself: call it without the lock.
+      if (const std::optional<v1::Telemetry> t = last(); t && pred(*t)) return true;
+      std::this_thread::sleep_for(5ms);
+    }
+    return false;
+  }
+  bool wait_for_mode(v1::NodeMode mode, std::chrono::milliseconds bound = 20s) const {
+    return wait_for([mode](const v1::Telemetry& t) { return t.mode() == mode; }, bound);
+  }
+
+ private:
+  zmq::socket_t socket_;
+  std::atomic<bool> running_{true};
+  mutable std::mutex mutex_;
+  std::vector<v1::CycleRecord> cycles_;
+  std::optional<v1::Telemetry> last_;
+  std::size_t messages_{0};
+  std::thread thread_;
+};
+
+// One command, one reply (nullopt on timeout).
+inline std::optional<v1::NodeCommandReply> send_command(
+    zmq::context_t& ctx, const std::string& endpoint, v1::NodeCommand::Kind kind,
+    std::function<void(zmq::socket_t&)> secure = {}) {
+  zmq::socket_t s(ctx, zmq::socket_type::req);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::rcvtimeo, 5000);
+  if (secure) secure(s);
+  s.connect(endpoint);
+  v1::NodeCommand c;
+  c.set_kind(kind);
+  const std::string bytes = c.SerializeAsString();
+  s.send(zmq::buffer(bytes), zmq::send_flags::none);
+  zmq::message_t reply;
+  if (!s.recv(reply)) return std::nullopt;
+  v1::NodeCommandReply r;
+  if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size()))) return std::nullopt;
+  return r;
+}
+
+}  // namespace teleop::test
