@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The README's first command: install dependencies, build, and run the main job (the
-# analysis and simulation demo on simulated devices).
+# analysis, then both nodes live on simulated devices: teleopctl launch).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
@@ -19,3 +19,8 @@ echo
 echo "== a slave fixture below and above its limit, simulated with the nodes' control law"
 ./build/supervisor/teleopctl/teleopctl simulate examples/scenes/paddles_slave_fixture_stable.textproto
 ./build/supervisor/teleopctl/teleopctl simulate examples/scenes/paddles_slave_fixture_unstable.textproto || true
+echo
+echo "== the main job: teleop-master and teleop-slave on loopback, engaged (Ctrl-C stops them)"
+duration=()
+if [[ -n "${DEMO_DURATION:-}" ]]; then duration=(--duration "$DEMO_DURATION"); fi
+./build/supervisor/teleopctl/teleopctl launch examples/live.textproto "${duration[@]}"

@@ -1,5 +1,6 @@
 #include "common/runtime/node_app.hpp"
 
+#include <sched.h>
 #include <signal.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -48,6 +49,18 @@ std::optional<node::Command> to_command(v1::NodeCommand::Kind k) {
     default:
       return std::nullopt;
   }
+}
+
+// Whether this process may run a thread at SCHED_FIFO `priority` (tried on a scratch thread).
+bool fifo_permitted(int priority) {
+  bool ok = false;
+  std::thread probe([&ok, priority] {
+    sched_param p{};
+    p.sched_priority = priority;
+    ok = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
+  });
+  probe.join();
+  return ok;
 }
 
 }  // namespace
@@ -117,6 +130,16 @@ void NodeApp::start() {
   if (!setup_.keys.peer_public_key.empty()) {
     m.client_security.server_public_key = setup_.keys.peer_public_key;
   }
+  // The link threads and ZeroMQ's I/O threads run just below the loop (issue 8 "RT priorities
+  // per thread"): under load they must not starve, or states queue and conflate away. Set
+  // before the first socket starts the I/O threads; refusals are only warnings here.
+  int link_priority = setup_.rt.fifo_priority > 10 ? setup_.rt.fifo_priority - 10 : 0;
+  // libzmq asserts (aborts) when its I/O threads cannot take the policy: probe first.
+  if (link_priority > 0 && !fifo_permitted(link_priority)) link_priority = 0;
+  if (link_priority > 0) {
+    m.ctx.set(zmq::ctxopt::thread_sched_policy, SCHED_FIFO);
+    m.ctx.set(zmq::ctxopt::thread_priority, link_priority);
+  }
   m.zap.emplace(m.ctx);
   m.state_pub.emplace(
       transport::make_state_publisher(m.ctx, setup_.endpoints.state, m.server_security));
@@ -141,7 +164,9 @@ void NodeApp::start() {
   m.running = true;
   node::NodeCore& core = *core_;
   // Sender: one send per loop cycle, woken by the loop's counter (a futex wake, no lock).
-  m.sender = std::thread([this, &m, &core] {
+  const rt::RtSettings link_rt{link_priority, false, -1, false};
+  m.sender = std::thread([&m, &core, link_rt] {
+    if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
     std::uint32_t seen = core.state_published().load(std::memory_order_acquire);
     transport::NodeStateRecord state;
     while (m.running.load()) {
@@ -155,7 +180,8 @@ void NodeApp::start() {
   });
   // Receiver: every frame that arrived goes through the filter (each one counted); only the
   // newest accepted state reaches the loop, so it never works through a backlog.
-  m.receiver = std::thread([this, &m, &core] {
+  m.receiver = std::thread([this, &m, &core, link_rt] {
+    if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
     const Role expected = setup_.settings.role == Role::kMaster ? Role::kSlave : Role::kMaster;
     transport::PeerStateFilter filter(expected);
     zmq::message_t frame;

@@ -1,8 +1,8 @@
 // RT safety (DESIGN §4): the control steps make no allocation. This binary interposes the C
 // allocator itself (an operator new counter would miss C allocations, and libstdc++'s
 // operator new ends in malloc anyway): malloc & co forward to glibc's __libc_* entry points
-// and count calls while a window is open. AddressSanitizer replaces malloc itself, so under
-// ASan the interposition is not compiled and the tests skip.
+// and count calls while a window is open (tests/support/alloc_counter.hpp). AddressSanitizer
+// replaces malloc itself, so the sanitizer build leaves this binary out.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -17,95 +17,20 @@
 #include "common/control/force_loop_controller.hpp"
 #include "common/control/master_law.hpp"
 #include "common/control/slave_law.hpp"
-
-#if defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define TELEOP_TEST_ASAN 1
-#endif
-#endif
-#if defined(__SANITIZE_ADDRESS__) && !defined(TELEOP_TEST_ASAN)
-#define TELEOP_TEST_ASAN 1
-#endif
-#ifndef TELEOP_TEST_ASAN
-#define TELEOP_TEST_ASAN 0
-#endif
+#include "tests/support/alloc_counter.hpp"
 
 namespace {
 
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_calls{0};
-
-[[maybe_unused]] inline void count_call() noexcept {
-  if (g_counting.load(std::memory_order_relaxed)) g_calls.fetch_add(1, std::memory_order_relaxed);
-}
-
-void open_window() noexcept {
-  g_calls.store(0);
-  g_counting.store(true);
-}
-
-long close_window() noexcept {
-  g_counting.store(false);
-  return g_calls.load();
-}
+void open_window() noexcept { teleop::test::start_counting(false); }
+long close_window() noexcept { return teleop::test::stop_counting(); }
 
 }  // namespace
-
-#if !TELEOP_TEST_ASAN
-extern "C" {
-void* __libc_malloc(std::size_t size) noexcept;
-void* __libc_calloc(std::size_t count, std::size_t size) noexcept;
-void* __libc_realloc(void* ptr, std::size_t size) noexcept;
-void __libc_free(void* ptr) noexcept;
-void* __libc_memalign(std::size_t alignment, std::size_t size) noexcept;
-
-void* malloc(std::size_t size) noexcept {
-  count_call();
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) noexcept {
-  count_call();
-  return __libc_calloc(count, size);
-}
-void* realloc(void* ptr, std::size_t size) noexcept {
-  count_call();
-  return __libc_realloc(ptr, size);
-}
-void free(void* ptr) noexcept {
-  count_call();
-  __libc_free(ptr);
-}
-void* aligned_alloc(std::size_t alignment, std::size_t size) noexcept {
-  count_call();
-  return __libc_memalign(alignment, size);
-}
-void* memalign(std::size_t alignment, std::size_t size) noexcept {
-  count_call();
-  return __libc_memalign(alignment, size);
-}
-int posix_memalign(void** out, std::size_t alignment, std::size_t size) noexcept {
-  count_call();
-  if (alignment < sizeof(void*) || (alignment & (alignment - 1)) != 0) return EINVAL;
-  void* p = __libc_memalign(alignment, size);
-  if (p == nullptr) return ENOMEM;
-  *out = p;
-  return 0;
-}
-}  // extern "C"
-#endif
 
 namespace teleop::control {
 namespace {
 
 constexpr int kSteps = 10000;
 constexpr double kT = 1e-3;
-
-// AddressSanitizer replaces malloc itself: the sanitizer build leaves this binary out
-// (tests/unit/control/CMakeLists.txt) rather than letting it skip silently.
-static_assert(!TELEOP_TEST_ASAN, "the allocation-interposition test needs a non-ASan build");
-#define SKIP_UNDER_ASAN() \
-  do {                    \
-  } while (false)
 
 // Every feature on, so every branch of the step runs: fixtures, filter, force channel,
 // limits, clutch fades.
@@ -126,7 +51,6 @@ static_assert(!TELEOP_TEST_ASAN, "the allocation-interposition test needs a non-
 }
 
 TEST(RealTime, CounterSeesAllocations) {
-  SKIP_UNDER_ASAN();
   // Through volatile pointers, so the compiler cannot pair up and elide the calls.
   void* (*volatile do_malloc)(std::size_t) = &std::malloc;
   void (*volatile do_free)(void*) = &std::free;
@@ -147,7 +71,6 @@ TEST(RealTime, CounterSeesAllocations) {
 }
 
 TEST(RealTime, MasterAndSlaveStepsDoNotAllocate) {
-  SKIP_UNDER_ASAN();
   const LawParams params = busy_params();
   MasterLaw master(params);
   SlaveLaw slave(params);
@@ -192,7 +115,6 @@ TEST(RealTime, MasterAndSlaveStepsDoNotAllocate) {
 }
 
 TEST(RealTime, ForceLoopStepsDoNotAllocate) {
-  SKIP_UNDER_ASAN();
   ForceLoopSettings s;
   s.period_s = kT;
   s.kp = 5.0;

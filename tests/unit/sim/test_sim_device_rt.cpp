@@ -1,7 +1,7 @@
 // read/write/advance of the simulated device never allocate (DESIGN §4): malloc, calloc,
 // realloc and free are interposed (an operator-new counter would miss C allocations) and counted
-// over 10 000 cycles. Sanitizer builds replace the allocator themselves, so there the test
-// skips.
+// over 10 000 cycles. Sanitizer builds replace the allocator themselves, so they leave this
+// binary out.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -10,53 +10,12 @@
 #include <cstddef>
 
 #include "common/device/sim_device.hpp"
-
-#if defined(__SANITIZE_ADDRESS__)
-#define TELEOP_SANITIZED 1
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer) || __has_feature(memory_sanitizer)
-#define TELEOP_SANITIZED 1
-#endif
-#endif
-
-#ifndef TELEOP_SANITIZED
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_calls{0};
-}  // namespace
-
-extern "C" {
-void* __libc_malloc(std::size_t size);
-void* __libc_calloc(std::size_t count, std::size_t size);
-void* __libc_realloc(void* ptr, std::size_t size);
-void __libc_free(void* ptr);
-
-void* malloc(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_calls.fetch_add(1);
-  return __libc_malloc(size);
-}
-void* calloc(std::size_t count, std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_calls.fetch_add(1);
-  return __libc_calloc(count, size);
-}
-void* realloc(void* ptr, std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_calls.fetch_add(1);
-  return __libc_realloc(ptr, size);
-}
-void free(void* ptr) {
-  if (ptr != nullptr && g_counting.load(std::memory_order_relaxed)) g_calls.fetch_add(1);
-  __libc_free(ptr);
-}
-}
-#endif
+#include "tests/support/alloc_counter.hpp"
 
 namespace teleop::device {
 namespace {
 
 TEST(SimDeviceRt, ReadWriteAdvanceNeverAllocate) {
-#ifdef TELEOP_SANITIZED
-  static_assert(false, "the sanitizer owns malloc: the sanitizer build leaves this test out");
-#else
   // The busiest configuration: a malicious user (propagators rebuilt at each new impedance),
   // friction, a noisy load cell, a trace profile with first-order hold.
   sim::HumanParams h = sim::HumanParams::malicious_pushing(default_human_band(), 5.0, 0.5);
@@ -76,8 +35,7 @@ TEST(SimDeviceRt, ReadWriteAdvanceNeverAllocate) {
   ASSERT_TRUE(slave.configure().ok());
   ASSERT_TRUE(slave.activate().ok());
 
-  g_calls = 0;
-  g_counting = true;
+  teleop::test::start_counting(false);
   Sample s;
   Sample ss;
   bool ok = true;
@@ -87,11 +45,10 @@ TEST(SimDeviceRt, ReadWriteAdvanceNeverAllocate) {
     ok = ok && slave.write({200.0 * (s.position_m - ss.position_m)}).ok();
     ok = ok && dev.advance(c.period).ok() && slave.advance(sc.period).ok();
   }
-  g_counting = false;
+  const long calls = teleop::test::stop_counting();
   EXPECT_TRUE(ok);
-  EXPECT_EQ(g_calls.load(), 0);
+  EXPECT_EQ(calls, 0);
   EXPECT_GT(*dev.truth().malicious_index, 10U);  // it did switch impedances on the way
-#endif
 }
 
 }  // namespace
