@@ -54,10 +54,9 @@ NodeEndpoints default_endpoints(Role role) {
   return e;
 }
 
-NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
-  if (role != Role::kMaster && role != Role::kSlave) {
-    throw ConfigError("node role must be master or slave");
-  }
+namespace {
+
+NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
   const bool master = role == Role::kMaster;
   const std::string side = master ? "master" : "slave";
   const v1::SystemConfig& c = config.config;
@@ -68,18 +67,18 @@ NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
   LoadedConfig scene_config = config;
   v1::Scene& scene = *scene_config.config.mutable_scene();
   if (!scene.has_duration_s()) scene.set_duration_s(1.0);
-  if (scene_config.config.has_human() && scene_config.config.human().has_band() &&
-      !scene.has_malicious_user()) {
-    const v1::HumanBand& band = scene_config.config.human().band();
-    const double f = band.force_levels_n_size() > 0 ? band.force_levels_n(0) : 0.0;
-    auto mid = [f](const v1::ParameterBand& b) {
-      return 0.5 * (b.lower().intercept() + b.lower().slope_per_n() * f + b.upper().intercept() +
-                    b.upper().slope_per_n() * f);
-    };
+  // The sides' simulated stand-ins (a USB side's simulated device is simply unused).
+  scene_config.config.mutable_master()->mutable_device()->set_kind(v1::SIM);
+  scene_config.config.mutable_slave()->mutable_device()->set_kind(v1::SIM);
+  const TeleopParams analysed = to_teleop_params(config);
+  if (analysed.human.kind == HumanKind::kBand && !scene.has_malicious_user()) {
+    const HumanBand& band = analysed.human.band;
+    const double f = band.force_levels_N.empty() ? 0.0 : band.force_levels_N.front();
+    auto mid = [f](const ParameterBand& b) { return 0.5 * (b.lower.at(f) + b.upper.at(f)); };
     v1::HumanImpedance fixed;
-    fixed.set_mass_kg(mid(band.mass_kg()));
-    fixed.set_damping_ns_per_m(mid(band.damping_ns_per_m()));
-    fixed.set_stiffness_n_per_m(mid(band.stiffness_n_per_m()));
+    fixed.set_mass_kg(mid(band.mass_kg));
+    fixed.set_damping_ns_per_m(mid(band.damping_Ns_per_m));
+    fixed.set_stiffness_n_per_m(mid(band.stiffness_N_per_m));
     *scene_config.config.mutable_human()->mutable_fixed() = fixed;
   }
   if (scene.has_force_device()) {
@@ -200,6 +199,17 @@ NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
   }
   p.throw_if_any();
   return out;
+}
+
+}  // namespace
+
+NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
+  if (role != Role::kMaster && role != Role::kSlave) {
+    throw ConfigError("node role must be master or slave");
+  }
+  // Both sides' sections are checked by either node: one file, one verdict.
+  (void)one_node_setup(config, role == Role::kMaster ? Role::kSlave : Role::kMaster);
+  return one_node_setup(config, role);
 }
 
 }  // namespace teleop::config

@@ -400,7 +400,7 @@ LinkMechanism choose_mechanism(std::string_view endpoint, LinkRole role,
     if (!security.own && !security.allowed_client_keys.empty()) {
       throw std::invalid_argument(
           fmt::format("{}: allowed client keys are set but the server has no key pair (set "
-                      "security.secret_key_file)",
+                      "master.node.secret_key_file / slave.node.secret_key_file)",
                       endpoint));
     }
     curve = security.own.has_value();
@@ -417,7 +417,7 @@ LinkMechanism choose_mechanism(std::string_view endpoint, LinkRole role,
     if (!security.own && security.server_public_key) {
       throw std::invalid_argument(
           fmt::format("{}: a server public key is set but the client has no key pair (set "
-                      "security.secret_key_file)",
+                      "master.node.secret_key_file / slave.node.secret_key_file)",
                       endpoint));
     }
     curve = security.own.has_value();
@@ -426,8 +426,8 @@ LinkMechanism choose_mechanism(std::string_view endpoint, LinkRole role,
   if (!security.insecure && !is_loopback_endpoint(endpoint)) {
     throw std::invalid_argument(
         fmt::format("{} is not a loopback endpoint: CURVE keys are required (set "
-                    "security.secret_key_file and the peer's public key) or insecure: true to "
-                    "send plaintext",
+                    "master.node.secret_key_file / slave.node.secret_key_file and the public "
+                    "keys in security) or security.insecure: true to send plaintext",
                     endpoint));
   }
   return LinkMechanism::kPlaintext;

@@ -415,8 +415,8 @@ TEST(Nodes, NaNPositionAndReplayedSessionAreRejectedAndNeverApplied) {
   }));
   // The slave restarts (session 2002); then a capture of session 1001 is replayed with
   // sequence numbers far ahead, and a NaN position arrives in the live session.
-  for (int i = 0; i < 10; ++i) fake.send(FakeSlave::state(2002, 100 + i, 0.002));
-  for (int i = 0; i < 10; ++i) fake.send(FakeSlave::state(1001, 777'000 + i, 0.5));
+  for (std::uint64_t i = 0; i < 10; ++i) fake.send(FakeSlave::state(2002, 100 + i, 0.002));
+  for (std::uint64_t i = 0; i < 10; ++i) fake.send(FakeSlave::state(1001, 777'000 + i, 0.5));
   fake.send(FakeSlave::state(2002, 200, std::nan("")));
   ASSERT_TRUE(mt.wait_for([](const v1::Telemetry& t) {
     return t.link().rejected_wrong_session() >= 10 && t.link().rejected_non_finite() >= 1;
@@ -433,6 +433,53 @@ TEST(Nodes, NaNPositionAndReplayedSessionAreRejectedAndNeverApplied) {
     ASSERT_NE(c.peer_position_m(), 0.5);
   }
   EXPECT_EQ(mt.cycles().back().peer_sequence(), 109u);
+}
+
+bool wait_for_text(const Process& p, const std::string& text, std::chrono::seconds bound = 30s) {
+  const auto until = std::chrono::steady_clock::now() + bound;
+  while (std::chrono::steady_clock::now() < until) {
+    if (p.log().find(text) != std::string::npos) return true;
+    std::this_thread::sleep_for(10ms);
+  }
+  return false;
+}
+
+TEST(Nodes, LaunchEngagesBothAndCtrlCStopsThemCleanly) {
+  TempDir dir;
+  Ports ports;
+  const auto config = dir.write("system.textproto", paddles_config(ports));
+  Process launch(TELEOPCTL_PATH, {"launch", config.string()}, dir.path() / "launch.log");
+  ASSERT_TRUE(wait_for_text(launch, "Ctrl-C stops both nodes.")) << launch.log();
+  EXPECT_NE(launch.log().find("\nengaged\n"), std::string::npos) << launch.log();
+  // A status line shows both engaged.
+  ASSERT_TRUE(wait_for_text(launch, "master engaged   slave engaged")) << launch.log();
+  launch.signal(SIGINT);
+  EXPECT_EQ(launch.wait(), 0) << launch.log();
+  EXPECT_NE(launch.log().find("both nodes stopped cleanly"), std::string::npos) << launch.log();
+  // Both nodes are gone: their command endpoints no longer answer.
+  zmq::context_t ctx(1);
+  zmq::socket_t s(ctx, zmq::socket_type::req);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::rcvtimeo, 300);
+  s.connect(tcp(ports.master_command));
+  v1::NodeCommand c;
+  c.set_kind(v1::NodeCommand::STATUS);
+  s.send(zmq::buffer(c.SerializeAsString()), zmq::send_flags::none);
+  zmq::message_t reply;
+  EXPECT_FALSE(s.recv(reply).has_value());
+}
+
+TEST(Nodes, UsbDeviceAbsentExitsNamingTheExpectedVendorAndProduct) {
+  TempDir dir;
+  Ports ports;
+  const auto config = dir.write("system.textproto", paddles_config(ports));
+  Process master(MASTER_BIN, {config.string(), "--set", "master.device.kind=USB"},
+                 dir.path() / "master.log");
+  EXPECT_EQ(master.wait(), 1);
+  EXPECT_NE(master.log().find("no USB haptic device attached: expected vendor 0x1209 product "
+                              "0x7E1E"),
+            std::string::npos)
+      << master.log();
 }
 
 }  // namespace

@@ -79,6 +79,25 @@ TEST(NodeStateCodec, ARestartedPeerIsANewSession) {
   EXPECT_TRUE(r->new_session);
 }
 
+TEST(NodeStateCodec, AReplayedEarlierSessionIsRejectedAndGapsCountAsLost) {
+  PeerStateFilter f(Role::kMaster);
+  const std::uint64_t first = master_state(1).session_id;
+  ASSERT_TRUE(f.accept(encode(master_state(1))).has_value());
+  ASSERT_TRUE(f.accept(encode(master_state(4))).has_value());  // 2 and 3 never came
+  EXPECT_EQ(f.lost(), 2u);
+  NodeStateRecord restarted = master_state(1);
+  restarted.session_id = first + 1;
+  ASSERT_TRUE(f.accept(encode(restarted)).has_value());
+  // A capture of the first session, even far ahead in sequence, is a replay.
+  EXPECT_FALSE(f.accept(encode(master_state(1000))).has_value());
+  EXPECT_EQ(f.rejected(Rejection::kWrongSession), 1u);
+  EXPECT_EQ(f.rejected(Rejection::kStale), 0u);
+  // Losses are counted within a session only (a restart starts over).
+  restarted.sequence = 3;
+  ASSERT_TRUE(f.accept(encode(restarted)).has_value());
+  EXPECT_EQ(f.lost(), 3u);
+}
+
 TEST(NodeStateCodec, GarbageNonFiniteAndWrongRoleNeverPass) {
   PeerStateFilter f(Role::kMaster);
   EXPECT_FALSE(f.accept("\xff\xff\xff\xff garbage").has_value());

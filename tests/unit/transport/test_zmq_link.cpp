@@ -183,8 +183,9 @@ TEST(LinkPolicy, PlaintextOffLoopbackIsRefusedNamingTheEndpoint) {
   const std::string sub_error = message_of<std::invalid_argument>(
       [&] { (void)make_state_subscriber(ctx, "tcp://10.1.2.3:5555", none); });
   EXPECT_NE(sub_error.find("tcp://10.1.2.3:5555 is not a loopback endpoint: CURVE keys are "
-                           "required (set security.secret_key_file and the peer's public key) or "
-                           "insecure: true to send plaintext"),
+                           "required (set master.node.secret_key_file / "
+                           "slave.node.secret_key_file and the public keys in security) or "
+                           "security.insecure: true to send plaintext"),
             std::string::npos)
       << sub_error;
   // Refused before binding: nothing listens on every interface, even briefly.
