@@ -28,6 +28,17 @@ MasterLaw::MasterLaw(const LawParams& params)
       params_.clutch_fade_s > 0.0 ? std::min(1.0, params_.period_s / params_.clutch_fade_s) : 1.0;
 }
 
+void MasterLaw::retune(const Gains& gains, const FixtureParams& master_fixture) noexcept {
+  params_.gains = gains;
+  params_.master_fixture = master_fixture;
+  fixture_ = UnilateralFixture(master_fixture);
+  const double beta = params_.scaling.force;
+  use_kpm_ = beta != 0.0 && gains.kpm != 0.0;
+  use_kdm_ = beta != 0.0 && gains.kdm != 0.0;
+  use_kfm_ = beta != 0.0 && gains.kfm != 0.0;
+  use_kvm_ = gains.kvm != 0.0;
+}
+
 Command MasterLaw::step(double position_m, const PeerState& slave) noexcept {
   if (faulted_) return latch_fault();
   const bool bad_own = !std::isfinite(position_m);

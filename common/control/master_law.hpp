@@ -52,6 +52,11 @@ class MasterLaw {
   // exception or I/O).
   [[nodiscard]] Command step(double position_m, const PeerState& slave) noexcept;
 
+  // Live retuning (the supervisor's guarded parameter changes, ramped by the caller): new gains
+  // and master fixture from the next step on, every other state kept. The caller validated
+  // them (finite; stiffness >= 0). RT-safe.
+  void retune(const Gains& gains, const FixtureParams& master_fixture) noexcept;
+
   // Engage (true) or release (false) the clutch; takes effect at the next step(). RT-safe.
   void set_clutch(bool engaged) noexcept { clutch_requested_ = engaged; }
   [[nodiscard]] bool clutch_engaged() const noexcept { return clutch_requested_; }

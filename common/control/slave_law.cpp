@@ -30,6 +30,16 @@ SlaveLaw::SlaveLaw(const LawParams& params)
       params_.clutch_fade_s > 0.0 ? std::min(1.0, params_.period_s / params_.clutch_fade_s) : 1.0;
 }
 
+void SlaveLaw::retune(const Gains& gains, const FixtureParams& slave_fixture) noexcept {
+  params_.gains = gains;
+  params_.slave_fixture = slave_fixture;
+  fixture_ = UnilateralFixture(slave_fixture);
+  use_kps_ = gains.kps != 0.0;
+  use_kds_ = gains.kds != 0.0;
+  use_kvs_ = gains.kvs != 0.0;
+  follows_master_ = use_kps_ || use_kds_;
+}
+
 Command SlaveLaw::step(double position_m, double measured_force_N,
                        const PeerState& master) noexcept {
   if (faulted_) return latch_fault();

@@ -58,6 +58,11 @@ class SlaveLaw {
   [[nodiscard]] Command step(double position_m, double measured_force_N,
                              const PeerState& master) noexcept;
 
+  // Live retuning (the supervisor's guarded parameter changes, ramped by the caller): new gains
+  // and slave fixture from the next step on, every other state kept. The caller validated them.
+  // RT-safe.
+  void retune(const Gains& gains, const FixtureParams& slave_fixture) noexcept;
+
   // What to send to the master after step(): own position, own filtered velocity, measured
   // force, clutched = false, valid (false before the first step and while faulted). RT-safe.
   [[nodiscard]] PeerState peer_state() const noexcept;

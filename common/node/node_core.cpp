@@ -49,6 +49,50 @@ NodeCore::NodeCore(const NodeSettings& settings, device::HapticDevice& device)
   } else {
     throw std::invalid_argument("node role must be master or slave");
   }
+  active_.gains = settings_.law.gains;
+  active_.master_fixture = settings_.law.master_fixture;
+  active_.slave_fixture = settings_.law.slave_fixture;
+  active_out_.write(active_);
+}
+
+void NodeCore::apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept {
+  Retune incoming{};
+  if (retune_in_.read(incoming)) {
+    pending_ = incoming;
+    retune_pending_ = true;
+  }
+  if (retune_pending_ && master_sequence >= pending_.apply_at_master_sequence) {
+    retune_pending_ = false;
+    ramping_ = true;
+    ramp_from_ = active_;
+    ramp_start_ = now;
+    ramp_length_ = pending_.ramp;
+    active_.change_id = pending_.id;
+    active_.applied_at_master_sequence = master_sequence;
+  }
+  if (!ramping_) return;
+  const double length = static_cast<double>(ramp_length_.count());
+  const double w =
+      length <= 0.0
+          ? 1.0
+          : std::clamp(static_cast<double>((now - ramp_start_).count()) / length, 0.0, 1.0);
+  auto lerp = [w](double a, double b) { return a + w * (b - a); };
+  const Gains& a = ramp_from_.gains;
+  const Gains& b = pending_.gains;
+  active_.gains =
+      Gains{lerp(a.kpm, b.kpm), lerp(a.kps, b.kps), lerp(a.kdm, b.kdm), lerp(a.kds, b.kds),
+            lerp(a.kvm, b.kvm), lerp(a.kvs, b.kvs), lerp(a.kfm, b.kfm)};
+  active_.master_fixture = FixtureParams{
+      lerp(ramp_from_.master_fixture.stiffness_N_per_m, pending_.master_fixture.stiffness_N_per_m),
+      pending_.master_fixture.position_m};
+  active_.slave_fixture = FixtureParams{
+      lerp(ramp_from_.slave_fixture.stiffness_N_per_m, pending_.slave_fixture.stiffness_N_per_m),
+      pending_.slave_fixture.position_m};
+  active_.ramp_progress = w;
+  if (master_law_) master_law_->retune(active_.gains, active_.master_fixture);
+  if (slave_law_) slave_law_->retune(active_.gains, active_.slave_fixture);
+  if (w >= 1.0) ramping_ = false;
+  active_out_.write(active_);
 }
 
 bool NodeCore::post_command(Command command) noexcept {
@@ -212,6 +256,9 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
     const double since = static_cast<double>((now - safe_since_).count());
     weight = ramp <= 0.0 ? 0.0 : std::clamp(1.0 - since / ramp, 0.0, 1.0);
   }
+  const std::uint64_t master_sequence =
+      master ? sequence_ : (have_peer_ ? peer_.state.sequence : 0);
+  apply_retune(now, master_sequence);
   const bool coupled = have_peer_ && peer_coupled(peer_.state.mode) && !device_fault;
   std::uint32_t flags = sample.flags;
   double force_N = 0.0;
@@ -242,8 +289,7 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
     state.clutched = published.clutched;
   }
   state.force_N = master ? 0.0 : sample.force_N;
-  const FixtureParams& fixture =
-      master ? settings_.law.master_fixture : settings_.law.slave_fixture;
+  const FixtureParams& fixture = master ? active_.master_fixture : active_.slave_fixture;
   if (fixture.stiffness_N_per_m > 0.0 && own_m > fixture.position_m) {
     state.fixture_in_contact = true;
     state.fixture_penetration_m = own_m - fixture.position_m;
@@ -273,6 +319,8 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
   rec.coupling_weight = weight;
   rec.flags = flags;
   rec.round_trip_ns = round_trip_ns_;
+  rec.master_sequence = master_sequence;
+  rec.parameter_change_id = active_.change_id;
   if (timing != nullptr && timing->cycles() > 0) {
     rec.wakeup_latency_ns = timing->last_wakeup_latency().count();
   }

@@ -69,6 +69,27 @@ struct LawFlagBits {
   static constexpr std::uint32_t kInputFault = 1U << 12;
 };
 
+// A guarded parameter change: applied when the master's sequence reaches apply_at, every value
+// ramped linearly from the one in force over `ramp`.
+struct Retune {
+  std::uint64_t id{0};
+  Gains gains{};
+  FixtureParams master_fixture{};
+  FixtureParams slave_fixture{};
+  std::uint64_t apply_at_master_sequence{0};
+  std::chrono::nanoseconds ramp{0};
+};
+
+// What the law runs now.
+struct ActiveLaw {
+  std::uint64_t change_id{0};
+  std::uint64_t applied_at_master_sequence{0};
+  Gains gains{};
+  FixtureParams master_fixture{};
+  FixtureParams slave_fixture{};
+  double ramp_progress{1.0};
+};
+
 // One cycle for telemetry (mirrors teleop.v1.CycleRecord); fixed size.
 struct CycleRecord {
   std::uint64_t sequence{0};
@@ -86,6 +107,8 @@ struct CycleRecord {
   std::uint32_t flags{0};
   std::int64_t wakeup_latency_ns{0};
   std::int64_t round_trip_ns{0};
+  std::uint64_t master_sequence{0};
+  std::uint64_t parameter_change_id{0};
 };
 
 // Loop and link statistics the RT thread publishes every kStatsEvery cycles.
@@ -140,6 +163,10 @@ class NodeCore {
     return telemetry_out_;
   }
   [[nodiscard]] rt::LatestValue<LoopSnapshot>& stats_out() noexcept { return stats_out_; }
+  // Command thread -> RT: a validated parameter change (the newest replaces a pending one).
+  void post_retune(const Retune& r) noexcept { retune_in_.write(r); }
+  // RT -> telemetry: the law's parameters in force.
+  [[nodiscard]] rt::LatestValue<ActiveLaw>& active_out() noexcept { return active_out_; }
   // The mode and its reason as of the last cycle (any thread).
   [[nodiscard]] Mode mode() const noexcept { return mode_.load(std::memory_order_acquire); }
   [[nodiscard]] const char* mode_reason() const noexcept {
@@ -154,6 +181,7 @@ class NodeCore {
   [[nodiscard]] double slave_command(Mode mode, double position_m, double force_N, bool coupled,
                                      std::uint32_t& flags) noexcept;
   void publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept;
+  void apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept;
 
   NodeSettings settings_;
   device::HapticDevice& device_;
@@ -172,6 +200,8 @@ class NodeCore {
   std::atomic<std::uint32_t> published_{0};
   rt::SpscQueue<CycleRecord, kTelemetryCapacity> telemetry_out_{};
   rt::LatestValue<LoopSnapshot> stats_out_{};
+  rt::LatestValue<Retune> retune_in_{};
+  rt::LatestValue<ActiveLaw> active_out_{};
   std::atomic<Mode> mode_{Mode::kDisarmed};
   std::atomic<const char*> reason_{"start"};
 
@@ -187,6 +217,14 @@ class NodeCore {
   double last_command_N_{0.0};
   double safe_from_N_{0.0};
   bool scene_started_{false};
+  // Parameter changes.
+  bool retune_pending_{false};
+  Retune pending_{};
+  bool ramping_{false};
+  ActiveLaw active_{};
+  ActiveLaw ramp_from_{};
+  std::chrono::nanoseconds ramp_start_{0};
+  std::chrono::nanoseconds ramp_length_{0};
 };
 
 }  // namespace teleop::node

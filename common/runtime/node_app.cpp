@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 #include <sys/random.h>
 
+#include <cmath>
 #include <iostream>
 #include <optional>
 #include <stdexcept>
@@ -61,6 +62,49 @@ bool fifo_permitted(int priority) {
   });
   probe.join();
   return ok;
+}
+
+// A parameter update as the RT core takes it; nullopt with the reason when a value is unusable.
+std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string& why) {
+  const v1::Gains& g = u.gains();
+  const double values[] = {g.kpm(),
+                           g.kps(),
+                           g.kdm(),
+                           g.kds(),
+                           g.kvm(),
+                           g.kvs(),
+                           g.kfm(),
+                           u.master_fixture_stiffness_n_per_m(),
+                           u.master_fixture_position_m(),
+                           u.slave_fixture_stiffness_n_per_m(),
+                           u.slave_fixture_position_m(),
+                           u.ramp_ms()};
+  for (const double v : values) {
+    if (!std::isfinite(v)) {
+      why = "non-finite value";
+      return std::nullopt;
+    }
+  }
+  if (u.change_id() == 0) {
+    why = "change_id must be > 0";
+    return std::nullopt;
+  }
+  if (u.master_fixture_stiffness_n_per_m() < 0.0 || u.slave_fixture_stiffness_n_per_m() < 0.0) {
+    why = "fixture stiffness must be >= 0";
+    return std::nullopt;
+  }
+  if (u.ramp_ms() < 0.0 || u.ramp_ms() > 60000.0) {
+    why = "ramp_ms must be in [0, 60000]";
+    return std::nullopt;
+  }
+  node::Retune r;
+  r.id = u.change_id();
+  r.gains = Gains{g.kpm(), g.kps(), g.kdm(), g.kds(), g.kvm(), g.kvs(), g.kfm()};
+  r.master_fixture = {u.master_fixture_stiffness_n_per_m(), u.master_fixture_position_m()};
+  r.slave_fixture = {u.slave_fixture_stiffness_n_per_m(), u.slave_fixture_position_m()};
+  r.apply_at_master_sequence = u.apply_at_master_sequence();
+  r.ramp = std::chrono::nanoseconds(static_cast<long long>(std::llround(u.ramp_ms() * 1e6)));
+  return r;
 }
 
 }  // namespace
@@ -227,6 +271,19 @@ void NodeApp::start() {
         reply.set_message("malformed command");
       } else if (cmd.kind() == v1::NodeCommand::STATUS) {
         reply.set_ok(true);
+      } else if (cmd.kind() == v1::NodeCommand::RETUNE) {
+        std::string why;
+        const std::optional<node::Retune> r = to_retune(cmd.update(), why);
+        if (!r) {
+          reply.set_ok(false);
+          reply.set_message("parameter update refused: " + why);
+        } else {
+          core.post_retune(*r);
+          reply.set_ok(true);
+          reply.set_message("change " + std::to_string(r->id) + " applies at master sequence " +
+                            std::to_string(r->apply_at_master_sequence));
+        }
+        spdlog::info("RETUNE {}: {}", cmd.update().change_id(), reply.message());
       } else if (cmd.kind() == v1::NodeCommand::SHUTDOWN) {
         shutdown_.store(true);
         reply.set_ok(true);
@@ -269,6 +326,7 @@ void NodeApp::start() {
         std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
     auto next = std::chrono::steady_clock::now() + period;
     node::LoopSnapshot stats{};
+    node::ActiveLaw active{};
     node::Mode last_mode = node::Mode::kDisarmed;
     v1::Telemetry t;
     while (m.running.load()) {
@@ -294,6 +352,8 @@ void NodeApp::start() {
         c->set_flags(rec->flags);
         c->set_wakeup_latency_ns(rec->wakeup_latency_ns);
         c->set_round_trip_ns(rec->round_trip_ns);
+        c->set_master_sequence(rec->master_sequence);
+        c->set_parameter_change_id(rec->parameter_change_id);
         if (rec->mode != last_mode) {
           spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
                        rec->reason);
@@ -301,6 +361,20 @@ void NodeApp::start() {
         }
       }
       (void)core.stats_out().read(stats);
+      (void)core.active_out().read(active);
+      v1::ActiveParameters* a = t.mutable_active();
+      a->set_change_id(active.change_id);
+      a->set_applied_at_master_sequence(active.applied_at_master_sequence);
+      a->mutable_gains()->set_kpm(active.gains.kpm);
+      a->mutable_gains()->set_kps(active.gains.kps);
+      a->mutable_gains()->set_kdm(active.gains.kdm);
+      a->mutable_gains()->set_kds(active.gains.kds);
+      a->mutable_gains()->set_kvm(active.gains.kvm);
+      a->mutable_gains()->set_kvs(active.gains.kvs);
+      a->mutable_gains()->set_kfm(active.gains.kfm);
+      a->set_master_fixture_stiffness_n_per_m(active.master_fixture.stiffness_N_per_m);
+      a->set_slave_fixture_stiffness_n_per_m(active.slave_fixture.stiffness_N_per_m);
+      a->set_ramp_progress(active.ramp_progress);
       t.set_mode(to_proto(core.mode()));
       t.set_mode_reason(core.mode_reason());
       t.set_sent_time_ns(rt::PeriodicLoop::monotonic_now().count());

@@ -59,15 +59,18 @@ struct Ports {
 
 inline std::string tcp(int port) { return "tcp://127.0.0.1:" + std::to_string(port); }
 
-// A node section for loopback on these ports, no real-time scheduling (the tests share two
-// cores with the sanitizer build), every cycle in telemetry at 100 Hz.
-inline std::string node_section(const Ports& p, bool master, const std::string& extra = "") {
+// A node section for loopback on these ports, every cycle in telemetry at 100 Hz, no memory
+// locking (the sanitizer build's shadow memory), no real-time scheduling unless asked for
+// (`fifo_priority`: used where the kernel permits it, a warning otherwise).
+inline std::string node_section(const Ports& p, bool master, const std::string& extra = "",
+                                int fifo_priority = 0) {
   const int state = master ? p.master_state : p.slave_state;
   const int command = master ? p.master_command : p.slave_command;
   const int telemetry = master ? p.master_telemetry : p.slave_telemetry;
   return "node { state_endpoint: \"" + tcp(state) + "\" command_endpoint: \"" + tcp(command) +
          "\" telemetry_endpoint: \"" + tcp(telemetry) +
-         "\" telemetry_rate_hz: 100 rt { fifo_priority: 0 lock_memory: false "
+         "\" telemetry_rate_hz: 100 rt { fifo_priority: " + std::to_string(fifo_priority) +
+         " lock_memory: false "
          "cpu_dma_latency_us: -1 } " +
          extra + " }";
 }

@@ -225,5 +225,59 @@ TEST(NodeCore, EveryCycleIsInTelemetryAndTheRoundTripIsMeasuredFromEchoes) {
   EXPECT_EQ(p.master.telemetry_out().dropped(), 0u);
 }
 
+TEST(NodeCore, AGuardedChangeAppliesAtTheAgreedMasterSequenceOnBothSidesRamped) {
+  Pair p;
+  p.engage();
+  for (int i = 0; i < 50; ++i) p.cycle();
+  const std::uint64_t at = p.master_records.back().sequence + 20;
+  Retune r;
+  r.id = 7;
+  r.gains = Gains{300, 300, 1, 1, 0, 0, 0};
+  r.slave_fixture = FixtureParams{1000.0, 0.004};
+  r.apply_at_master_sequence = at;
+  r.ramp = 10ms;
+  p.master.post_retune(r);
+  p.slave.post_retune(r);
+  for (int i = 0; i < 60; ++i) p.cycle();
+  auto first_with_id = [](const std::vector<CycleRecord>& recs) {
+    for (const CycleRecord& c : recs) {
+      if (c.parameter_change_id == 7) return c;
+    }
+    return CycleRecord{};
+  };
+  // Both switch when the master's sequence reaches `at` (the slave learns it one link hop
+  // later, so at a later cycle of its own, but at the same master sequence).
+  EXPECT_EQ(first_with_id(p.master_records).master_sequence, at);
+  EXPECT_EQ(first_with_id(p.slave_records).master_sequence, at);
+  ActiveLaw a;
+  ASSERT_TRUE(p.slave.active_out().read(a));
+  EXPECT_EQ(a.change_id, 7u);
+  EXPECT_EQ(a.applied_at_master_sequence, at);
+  EXPECT_DOUBLE_EQ(a.ramp_progress, 1.0);
+  EXPECT_DOUBLE_EQ(a.gains.kps, 300.0);
+  EXPECT_DOUBLE_EQ(a.slave_fixture.stiffness_N_per_m, 1000.0);
+}
+
+TEST(NodeCore, TheRampIsLinearFromTheValueInForce) {
+  Pair p;
+  p.engage();
+  Retune r;
+  r.id = 3;
+  r.gains = settings(Role::kSlave).law.gains;
+  r.slave_fixture = FixtureParams{1000.0, 0.004};
+  r.apply_at_master_sequence = 0;  // at once
+  r.ramp = 10ms;
+  p.slave.post_retune(r);
+  std::vector<double> k;
+  for (int i = 0; i < 11; ++i) {
+    p.cycle();
+    ActiveLaw a;
+    ASSERT_TRUE(p.slave.active_out().read(a));
+    k.push_back(a.slave_fixture.stiffness_N_per_m);
+  }
+  // 0 -> 1000 N/m over 10 cycles: 100 N/m per cycle, from the cycle it applied.
+  for (int i = 0; i <= 10; ++i) EXPECT_NEAR(k[static_cast<std::size_t>(i)], 100.0 * i, 1e-9) << i;
+}
+
 }  // namespace
 }  // namespace teleop::node
