@@ -13,10 +13,21 @@ for p in "${packages[@]}"; do
 done
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages present"
-  exit 0
+else
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
-SUDO=""
-if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-echo "install-deps: installing ${missing[*]}"
-$SUDO apt-get update -q
-DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+
+# The independent MCAP reader check (ctest record.mcap_js): the official TypeScript reader and
+# protobufjs, pinned by tests/mcap_js/package-lock.json, with the machine's own node and npm.
+js_dir="$(cd "$(dirname "$0")/.." && pwd)/tests/mcap_js"
+if ! command -v npm >/dev/null; then
+  echo "install-deps: npm not found: the record.mcap_js test will fail" >&2
+elif [ "$js_dir/node_modules/.package-lock.json" -nt "$js_dir/package-lock.json" ]; then
+  echo "install-deps: tests/mcap_js/node_modules up to date"
+else
+  npm ci --prefix "$js_dir" --no-audit --no-fund
+fi

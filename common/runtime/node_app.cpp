@@ -7,6 +7,7 @@
 #include <sys/random.h>
 
 #include <cmath>
+#include <deque>
 #include <iostream>
 #include <optional>
 #include <stdexcept>
@@ -141,6 +142,8 @@ struct NodeApp::Impl {
   std::array<std::atomic<std::uint64_t>, static_cast<std::size_t>(transport::Rejection::kCount)>
       rejected{};
   std::atomic<std::uint64_t> lost{0};
+  // The flight recorder: the telemetry thread's ring of the last seconds of cycles.
+  std::atomic<bool> flight_request{false};
 };
 
 NodeApp::NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDevice> device,
@@ -284,6 +287,10 @@ void NodeApp::start() {
                             std::to_string(r->apply_at_master_sequence));
         }
         spdlog::info("RETUNE {}: {}", cmd.update().change_id(), reply.message());
+      } else if (cmd.kind() == v1::NodeCommand::FLIGHT_RECORD) {
+        m.flight_request.store(true);
+        reply.set_ok(true);
+        reply.set_message("flight record in the next telemetry message");
       } else if (cmd.kind() == v1::NodeCommand::SHUTDOWN) {
         shutdown_.store(true);
         reply.set_ok(true);
@@ -329,6 +336,11 @@ void NodeApp::start() {
     node::ActiveLaw active{};
     node::Mode last_mode = node::Mode::kDisarmed;
     v1::Telemetry t;
+    // The flight recorder keeps the last 10 s at full rate.
+    const std::size_t flight_cycles =
+        static_cast<std::size_t>(10.0e9 / static_cast<double>(setup_.settings.period.count()));
+    std::deque<v1::CycleRecord> flight;
+    std::string flight_reason;
     while (m.running.load()) {
       std::this_thread::sleep_until(next);
       next += period;
@@ -357,8 +369,14 @@ void NodeApp::start() {
         if (rec->mode != last_mode) {
           spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
                        rec->reason);
+          if ((rec->mode == node::Mode::kSafe || rec->mode == node::Mode::kFault) &&
+              flight_reason.empty()) {
+            flight_reason = std::string(node::to_string(rec->mode)) + ": " + rec->reason;
+          }
           last_mode = rec->mode;
         }
+        flight.push_back(*c);
+        while (flight.size() > flight_cycles) flight.pop_front();
       }
       (void)core.stats_out().read(stats);
       (void)core.active_out().read(active);
@@ -417,6 +435,14 @@ void NodeApp::start() {
       r->set_cpu(setup_.rt.cpu);
       r->set_cpu_dma_latency_us(m.dma && m.dma->held() ? setup_.cpu_dma_latency_us : -1);
       for (const std::string& s : refused_) r->add_refused(s);
+      if (m.flight_request.exchange(false) && flight_reason.empty()) flight_reason = "requested";
+      if (!flight_reason.empty()) {
+        // Handed over once, then the recorder starts afresh.
+        for (const v1::CycleRecord& c : flight) *t.add_flight_record() = c;
+        t.set_flight_record_reason(flight_reason);
+        spdlog::info("flight record handed over: {} cycles ({})", flight.size(), flight_reason);
+        flight_reason.clear();
+      }
       const std::string bytes = t.SerializeAsString();
       (void)m.telemetry_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
     }

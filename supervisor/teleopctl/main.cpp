@@ -5,8 +5,10 @@
 #include <vector>
 
 #include "supervisor/teleopctl/analyze_command.hpp"
+#include "supervisor/teleopctl/identify_command.hpp"
 #include "supervisor/teleopctl/keygen_command.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
+#include "supervisor/teleopctl/set_command.hpp"
 #include "supervisor/teleopctl/simulate_command.hpp"
 
 namespace {
@@ -19,6 +21,8 @@ void usage(std::ostream& os) {
         "  launch     run master and slave on loopback, engaged (see 'teleopctl launch --help')\n"
         "  node       one command to one node: arm, engage, estop, ... ('teleopctl node --help')\n"
         "  keygen     a CURVE key pair for a node or client (see 'teleopctl keygen --help')\n"
+        "  set        a guarded parameter change through the supervisor ('teleopctl set --help')\n"
+        "  identify   a device's mass and damping by least squares ('teleopctl identify --help')\n"
         "  help       this text\n";
 }
 
@@ -64,9 +68,12 @@ int main(int argc, char** argv) {
     std::string (*usage)();
     int (*run)(const std::vector<std::string>&, std::ostream&, std::ostream&);
   };
-  for (const Simple& c : {Simple{"launch", teleop::ctl::launch_usage, teleop::ctl::run_launch},
-                          Simple{"node", teleop::ctl::node_usage, teleop::ctl::run_node_command},
-                          Simple{"keygen", teleop::ctl::keygen_usage, teleop::ctl::run_keygen}}) {
+  for (const Simple& c :
+       {Simple{"launch", teleop::ctl::launch_usage, teleop::ctl::run_launch},
+        Simple{"node", teleop::ctl::node_usage, teleop::ctl::run_node_command},
+        Simple{"keygen", teleop::ctl::keygen_usage, teleop::ctl::run_keygen},
+        Simple{"set", teleop::ctl::set_usage, teleop::ctl::run_set},
+        Simple{"identify", teleop::ctl::identify_usage, teleop::ctl::run_identify}}) {
     if (args[0] != c.name) continue;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {

@@ -54,22 +54,22 @@ std::string role_name(v1::NodeRole r) {
 volatile sig_atomic_t g_interrupted = 0;
 extern "C" void on_interrupt(int) { g_interrupted = 1; }
 
-// The node binaries: beside teleopctl when installed, or in the build tree.
+// The process binaries: beside teleopctl when installed, or in the build tree.
 std::string find_node_binary(const std::string& name) {
-  if (const char* env =
-          std::getenv(name == "teleop-master" ? "TELEOP_MASTER_BIN" : "TELEOP_SLAVE_BIN")) {
-    return env;
-  }
+  const std::string env_name = name == "teleop-master"  ? "TELEOP_MASTER_BIN"
+                               : name == "teleop-slave" ? "TELEOP_SLAVE_BIN"
+                                                        : "TELEOP_SUPERVISOR_BIN";
+  if (const char* env = std::getenv(env_name.c_str())) return env;
   std::error_code ec;
   const std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", ec);
   const std::filesystem::path dir = self.parent_path();
-  const std::string sub = name == "teleop-master" ? "master_node" : "slave_node";
-  for (const std::filesystem::path& p :
-       {dir / name, dir / ".." / ".." / sub / name, dir / ".." / sub / name}) {
+  const std::filesystem::path sub = name == "teleop-master"  ? "master_node"
+                                    : name == "teleop-slave" ? "slave_node"
+                                                             : "supervisor/daemon";
+  for (const std::filesystem::path& p : {dir / name, dir / ".." / ".." / sub / name}) {
     if (std::filesystem::exists(p, ec)) return std::filesystem::weakly_canonical(p).string();
   }
-  throw std::runtime_error("cannot find " + name + " beside " + dir.string() + " (set " +
-                           (name == "teleop-master" ? "TELEOP_MASTER_BIN" : "TELEOP_SLAVE_BIN") +
+  throw std::runtime_error("cannot find " + name + " beside " + dir.string() + " (set " + env_name +
                            ")");
 }
 
@@ -167,10 +167,12 @@ int run_node_command(const std::vector<std::string>& args, std::ostream& out, st
 }
 
 std::string launch_usage() {
-  return "usage: teleopctl launch CONFIG [--set PATH=VALUE]... [--duration S] [--no-engage]\n\n"
+  return "usage: teleopctl launch CONFIG [--set PATH=VALUE]... [--duration S] [--no-engage]\n"
+         "                        [--record-dir DIR] [--no-supervisor]\n\n"
          "Starts teleop-master and teleop-slave on loopback with simulated devices (the scene's\n"
-         "human and environment, when CONFIG has a scene), arms and engages both, and prints\n"
-         "their state once a second until Ctrl-C (or --duration S), then stops both cleanly.\n";
+         "human and environment, when CONFIG has a scene) and teleop-supervisor (recording the\n"
+         "session in DIR, default ./sessions), arms and engages both nodes, and prints their\n"
+         "state once a second until Ctrl-C (or --duration S), then stops all cleanly.\n";
 }
 
 int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -178,6 +180,8 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
   std::vector<std::string> overrides;
   double duration_s = 0.0;
   bool engage = true;
+  bool supervise = true;
+  std::string record_dir = "sessions";
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
@@ -190,6 +194,10 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
       if (!(duration_s > 0.0)) throw UsageError("--duration must be > 0");
     } else if (a == "--no-engage") {
       engage = false;
+    } else if (a == "--no-supervisor") {
+      supervise = false;
+    } else if (a == "--record-dir") {
+      record_dir = cur.value("--record-dir");
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
     } else if (config_path.empty()) {
@@ -222,16 +230,35 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     sa.sa_handler = on_interrupt;
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
-    const pid_t master_pid = spawn(find_node_binary("teleop-master"), node_args);
-    const pid_t slave_pid = spawn(find_node_binary("teleop-slave"), node_args);
+    // Every binary found before any process starts.
+    const std::string master_bin = find_node_binary("teleop-master");
+    const std::string slave_bin = find_node_binary("teleop-slave");
+    const std::string supervisor_bin = supervise ? find_node_binary("teleop-supervisor") : "";
+    const pid_t master_pid = spawn(master_bin, node_args);
+    const pid_t slave_pid = spawn(slave_bin, node_args);
+    pid_t supervisor_pid = -1;
+    if (supervise) {
+      std::vector<std::string> sup_args = node_args;
+      sup_args.push_back("--record-dir");
+      sup_args.push_back(record_dir);
+      supervisor_pid = spawn(supervisor_bin, sup_args);
+    }
     auto stop_all = [&] {
+      // The supervisor first: it must not take the nodes' stop for a failure.
+      int sup = 0;
+      if (supervisor_pid > 0) {
+        ::kill(supervisor_pid, SIGINT);
+        ::waitpid(supervisor_pid, &sup, 0);
+      }
       ::kill(master_pid, SIGINT);
       ::kill(slave_pid, SIGINT);
       int ms = 0;
       int ss = 0;
       ::waitpid(master_pid, &ms, 0);
       ::waitpid(slave_pid, &ss, 0);
-      return (WIFEXITED(ms) && WEXITSTATUS(ms) == 0 && WIFEXITED(ss) && WEXITSTATUS(ss) == 0);
+      const bool sup_ok = supervisor_pid <= 0 || (WIFEXITED(sup) && WEXITSTATUS(sup) == 0);
+      return sup_ok && WIFEXITED(ms) && WEXITSTATUS(ms) == 0 && WIFEXITED(ss) &&
+             WEXITSTATUS(ss) == 0;
     };
 
     zmq::context_t ctx(1);

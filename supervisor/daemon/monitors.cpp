@@ -1,0 +1,28 @@
+#include "supervisor/daemon/monitors.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace teleop::supervisor {
+
+OscillationMonitor::OscillationMonitor(double period_s, double window_s, double threshold_m)
+    : period_s_(period_s),
+      window_s_(window_s),
+      threshold_m_(threshold_m),
+      capacity_(static_cast<std::size_t>(std::ceil(2.0 * window_s / period_s))) {
+  if (!(period_s > 0.0) || !(window_s > 0.0)) {
+    throw std::invalid_argument("oscillation monitor: period and window must be > 0");
+  }
+}
+
+void OscillationMonitor::add(double position_m) {
+  samples_.push_back(position_m);
+  while (samples_.size() > capacity_) samples_.pop_front();
+}
+
+scene::Oscillation OscillationMonitor::check() const {
+  const std::vector<double> x(samples_.begin(), samples_.end());
+  return scene::detect_oscillation(x, period_s_, window_s_, threshold_m_);
+}
+
+}  // namespace teleop::supervisor

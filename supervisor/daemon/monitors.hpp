@@ -1,0 +1,57 @@
+// What the supervisor watches on the live system (issue 5 "Watches"), fed with the nodes'
+// per-cycle telemetry: a sustained-oscillation detector on each position (the simulator's
+// detector on a sliding window) and a time-domain passivity observer per side.
+#pragma once
+
+#include <cstddef>
+#include <deque>
+#include <vector>
+
+#include "common/scene/oscillation.hpp"
+
+namespace teleop::supervisor {
+
+// A sliding window of one signal sampled every period; check() looks at the last `window_s`
+// and the one before it (two windows are kept).
+class OscillationMonitor {
+ public:
+  OscillationMonitor(double period_s, double window_s, double threshold_m);
+  void add(double position_m);
+  [[nodiscard]] scene::Oscillation check() const;
+  [[nodiscard]] bool full() const { return samples_.size() >= capacity_; }
+  void clear() { samples_.clear(); }
+
+ private:
+  double period_s_;
+  double window_s_;
+  double threshold_m_;
+  std::size_t capacity_;
+  std::deque<double> samples_{};
+};
+
+// Ryu-Hannaford's observer on one port: E(n) = T sum_{k<=n} f(k) v(k), the energy that has
+// flowed into the teleoperator through this port (f the force the outside applies along +x, v
+// the port velocity). A negative E means the teleoperator has given out more energy than it
+// received there: it is active at that port. The threshold absorbs sensor noise.
+class PassivityObserver {
+ public:
+  explicit PassivityObserver(double period_s) : period_s_(period_s) {}
+  void add(double force_N, double velocity_m_per_s) {
+    energy_J_ += period_s_ * force_N * velocity_m_per_s;
+    if (energy_J_ < min_energy_J_) min_energy_J_ = energy_J_;
+  }
+  [[nodiscard]] double energy_J() const { return energy_J_; }
+  // The deepest the energy has been below zero (0 when never).
+  [[nodiscard]] double min_energy_J() const { return min_energy_J_; }
+  void reset() {
+    energy_J_ = 0.0;
+    min_energy_J_ = 0.0;
+  }
+
+ private:
+  double period_s_;
+  double energy_J_{0.0};
+  double min_energy_J_{0.0};
+};
+
+}  // namespace teleop::supervisor

@@ -1,0 +1,71 @@
+#include "supervisor/daemon/session_recorder.hpp"
+
+#include <google/protobuf/descriptor.h>
+#include <time.h>
+
+#include <map>
+#include <mutex>
+#include <stdexcept>
+
+#include "common/record/proto_schema.hpp"
+#include "common/record/recorder.hpp"
+
+namespace teleop::supervisor {
+namespace {
+
+class SessionRecorder final : public RecordSink {
+ public:
+  explicit SessionRecorder(std::filesystem::path file) : file_(std::move(file)), recorder_(file_) {}
+  ~SessionRecorder() override { (void)recorder_.close(); }
+
+  void record(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
+              const std::string& bytes) override {
+    std::uint16_t channel = 0;
+    {
+      std::lock_guard lock(mutex_);
+      auto it = channels_.find(topic);
+      if (it == channels_.end()) {
+        const google::protobuf::Descriptor* d =
+            google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
+        if (d == nullptr) throw std::invalid_argument("unknown message type " + type);
+        auto schema = schemas_.find(type);
+        if (schema == schemas_.end()) {
+          schema = schemas_.emplace(type, recorder_.add_schema(record::protobuf_schema(d))).first;
+        }
+        it = channels_
+                 .emplace(topic,
+                          recorder_.add_channel(record::protobuf_channel(schema->second, topic)))
+                 .first;
+      }
+      channel = it->second;
+    }
+    (void)recorder_.record(channel, static_cast<std::uint64_t>(log_time_ns), bytes);
+  }
+  [[nodiscard]] std::string file() const override { return file_.string(); }
+  [[nodiscard]] std::uint64_t recorded() const override { return recorder_.written(); }
+  [[nodiscard]] std::uint64_t drops() const override { return recorder_.drops(); }
+
+ private:
+  std::filesystem::path file_;
+  record::Recorder recorder_;
+  std::mutex mutex_;
+  std::map<std::string, std::uint16_t> channels_;
+  std::map<std::string, std::uint16_t> schemas_;
+};
+
+}  // namespace
+
+std::unique_ptr<RecordSink> make_session_recorder_at(const std::filesystem::path& file) {
+  return std::make_unique<SessionRecorder>(file);
+}
+
+std::unique_ptr<RecordSink> make_session_recorder(const std::filesystem::path& dir) {
+  const time_t now = time(nullptr);
+  tm utc{};
+  gmtime_r(&now, &utc);
+  char name[64];
+  strftime(name, sizeof(name), "teleop-session-%Y%m%d-%H%M%S.mcap", &utc);
+  return make_session_recorder_at(dir / name);
+}
+
+}  // namespace teleop::supervisor

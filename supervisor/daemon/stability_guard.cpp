@@ -1,0 +1,125 @@
+#include "supervisor/daemon/stability_guard.hpp"
+
+#include <fmt/core.h>
+
+#include <cmath>
+
+#include "common/stability/analyzer.hpp"
+#include "common/stability/stiffness_search.hpp"
+
+namespace teleop::supervisor {
+
+bool Assessment::acceptable() const {
+  return verdict == stability::Verdict::kStable && min_damping_ratio >= required_damping_ratio;
+}
+
+std::optional<double> Assessment::master_margin() const {
+  if (!max_master_N_per_m || *max_master_N_per_m <= 0.0) return std::nullopt;
+  return 1.0 - inputs.master_fixture_N_per_m / *max_master_N_per_m;
+}
+
+std::optional<double> Assessment::slave_margin() const {
+  if (!max_slave_N_per_m || *max_slave_N_per_m <= 0.0) return std::nullopt;
+  return 1.0 - inputs.slave_fixture_N_per_m / *max_slave_N_per_m;
+}
+
+StabilityGuard::StabilityGuard(TeleopParams configured) : configured_(std::move(configured)) {}
+
+LiveInputs StabilityGuard::configured_inputs() const {
+  LiveInputs in;
+  in.sample_rate_hz = configured_.sample_rate_hz;
+  in.round_trip_samples = configured_.round_trip_delay_samples;
+  in.gains = configured_.gains;
+  in.master_fixture_N_per_m = configured_.master_fixture.stiffness_N_per_m;
+  in.slave_fixture_N_per_m = configured_.slave_fixture.stiffness_N_per_m;
+  return in;
+}
+
+TeleopParams StabilityGuard::params_for(const LiveInputs& in) const {
+  TeleopParams p = configured_;
+  p.sample_rate_hz = in.sample_rate_hz;
+  p.round_trip_delay_samples = in.round_trip_samples;
+  p.gains = in.gains;
+  p.master_fixture.stiffness_N_per_m = in.master_fixture_N_per_m;
+  p.slave_fixture.stiffness_N_per_m = in.slave_fixture_N_per_m;
+  return p;
+}
+
+const Assessment& StabilityGuard::assess(const LiveInputs& in) {
+  if (cached_ && cached_->inputs == in) return *cached_;
+  const TeleopParams p = params_for(in);
+  const stability::AnalysisResult r = stability::analyze(p);
+  Assessment a;
+  a.inputs = in;
+  a.verdict = r.verdict;
+  a.min_damping_ratio = r.min_damping_ratio;
+  a.required_damping_ratio = p.analysis.required_damping_ratio;
+  a.worst_human = r.worst_human;
+  // The limits only where a fixture is used (skip what the scene does not need).
+  if (in.master_fixture_N_per_m > 0.0) {
+    a.max_master_N_per_m =
+        stability::max_stable_stiffness(p, stability::Side::kMaster).max_stable_stiffness_N_per_m;
+  }
+  if (in.slave_fixture_N_per_m > 0.0) {
+    a.max_slave_N_per_m =
+        stability::max_stable_stiffness(p, stability::Side::kSlave).max_stable_stiffness_N_per_m;
+  }
+  cached_ = a;
+  return *cached_;
+}
+
+Decision StabilityGuard::check(const LiveInputs& current, const ChangeRequest& change) {
+  Decision d;
+  d.proposed = current;
+  if (change.gains) d.proposed.gains = *change.gains;
+  if (change.master_fixture_N_per_m)
+    d.proposed.master_fixture_N_per_m = *change.master_fixture_N_per_m;
+  if (change.slave_fixture_N_per_m)
+    d.proposed.slave_fixture_N_per_m = *change.slave_fixture_N_per_m;
+  for (const double v :
+       {d.proposed.gains.kpm, d.proposed.gains.kps, d.proposed.gains.kdm, d.proposed.gains.kds,
+        d.proposed.gains.kvm, d.proposed.gains.kvs, d.proposed.gains.kfm,
+        d.proposed.master_fixture_N_per_m, d.proposed.slave_fixture_N_per_m}) {
+    if (!std::isfinite(v)) {
+      d.reason = "refused: a requested value is not finite";
+      return d;
+    }
+  }
+  if (d.proposed.master_fixture_N_per_m < 0.0 || d.proposed.slave_fixture_N_per_m < 0.0) {
+    d.reason = "refused: fixture stiffness must be >= 0";
+    return d;
+  }
+  d.prediction = assess(d.proposed);
+  const Assessment& a = d.prediction;
+  if (a.verdict == stability::Verdict::kUnstable) {
+    d.reason = fmt::format(
+        "refused: the analyser predicts an unstable teleoperator (minimum damping ratio {:.4f}, "
+        "round trip {} samples)",
+        a.min_damping_ratio, current.round_trip_samples);
+  } else if (a.verdict == stability::Verdict::kUncertain) {
+    d.reason =
+        "refused: the analyser's verdict is uncertain (an eigenvalue within its error "
+        "bound of the unit circle)";
+  } else if (a.min_damping_ratio < a.required_damping_ratio) {
+    d.reason =
+        fmt::format("refused: predicted minimum damping ratio {:.4f} is below the required {:.4f}",
+                    a.min_damping_ratio, a.required_damping_ratio);
+  } else {
+    d.accepted = true;
+    d.reason = fmt::format("accepted: predicted minimum damping ratio {:.4f} (required {:.4f})",
+                           a.min_damping_ratio, a.required_damping_ratio);
+  }
+  return d;
+}
+
+double StabilityGuard::lowered_stiffness(const LiveInputs& current, bool slave_side,
+                                         double fraction) {
+  const Assessment& a = assess(current);
+  const double now = slave_side ? current.slave_fixture_N_per_m : current.master_fixture_N_per_m;
+  double target = fraction * now;
+  const std::optional<double> max = slave_side ? a.max_slave_N_per_m : a.max_master_N_per_m;
+  if (max) target = std::min(target, fraction * *max);
+  return std::max(0.0, target);
+}
+
+}  // namespace teleop::supervisor

@@ -1,0 +1,624 @@
+#include "supervisor/daemon/supervisor_app.hpp"
+
+#include <fmt/core.h>
+#include <signal.h>
+#include <spdlog/sinks/rotating_file_sink.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+#include <time.h>
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <zmq.hpp>
+
+#include "common/config/node_loader.hpp"
+#include "common/transport/zap_handler.hpp"
+#include "common/transport/zmq_security.hpp"
+#include "common/transport/zmq_sockets.hpp"
+#include "supervisor/daemon/monitors.hpp"
+#include "supervisor/daemon/stability_guard.hpp"
+#include "teleop/v1/config.pb.h"
+#include "teleop/v1/supervisor.pb.h"
+#include "teleop/v1/telemetry.pb.h"
+
+namespace teleop::supervisor {
+namespace {
+
+using namespace std::chrono_literals;
+
+std::int64_t monotonic_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
+}
+
+v1::Gains to_proto(const Gains& g) {
+  v1::Gains p;
+  p.set_kpm(g.kpm);
+  p.set_kps(g.kps);
+  p.set_kdm(g.kdm);
+  p.set_kds(g.kds);
+  p.set_kvm(g.kvm);
+  p.set_kvs(g.kvs);
+  p.set_kfm(g.kfm);
+  return p;
+}
+
+Gains from_proto(const v1::Gains& p) {
+  return Gains{p.kpm(), p.kps(), p.kdm(), p.kds(), p.kvm(), p.kvs(), p.kfm()};
+}
+
+// One node as the supervisor sees it through its telemetry.
+struct NodeView {
+  std::string name;
+  std::optional<v1::Telemetry> last{};
+  std::int64_t last_received_ns{0};
+  std::uint64_t session_id{0};
+  std::uint64_t last_sequence{0};
+  v1::NodeMode mode{v1::NODE_MODE_UNSPECIFIED};
+  std::uint64_t overruns_at_check{0};
+  std::int64_t overrun_check_ns{0};
+  std::uint64_t lost_at_check{0};
+  std::uint64_t accepted_at_check{0};
+  // Cycle timestamps for the measured rate.
+  std::deque<std::int64_t> cycle_times{};
+  std::unique_ptr<OscillationMonitor> oscillation{};
+  std::unique_ptr<PassivityObserver> passivity{};
+  double previous_position_m{0.0};
+  bool have_position{false};
+  std::int64_t oscillating_since_ns{0};
+  std::int64_t active_since_ns{0};
+};
+
+}  // namespace
+
+struct SupervisorApp::Impl {
+  Impl(const config::LoadedConfig& config, SupervisorOptions options)
+      : loaded(config),
+        params(config::to_teleop_params(config)),
+        guard(params),
+        opts(std::move(options)),
+        master_setup(config::to_node_setup(config, transport::Role::kMaster)),
+        slave_setup(config::to_node_setup(config, transport::Role::kSlave)) {
+    const v1::Supervisor& s = config.config.supervisor();
+    report_endpoint = s.report_endpoint().empty() ? "tcp://127.0.0.1:5566" : s.report_endpoint();
+    request_endpoint = s.request_endpoint().empty() ? "tcp://127.0.0.1:5567" : s.request_endpoint();
+    const double count_m =
+        2.0 * 3.141592653589793 * master_setup.sim.encoder.metres_per_radian /
+        (master_setup.sim.encoder.counts_per_rev * master_setup.sim.encoder.transmission_ratio);
+    oscillation_threshold_m =
+        s.has_oscillation_threshold_m() ? s.oscillation_threshold_m() : 2.0 * count_m;
+    passivity_threshold_J = s.has_passivity_threshold_j() ? s.passivity_threshold_j() : 0.005;
+    escalation_ns =
+        static_cast<std::int64_t>((s.has_escalation_ms() ? s.escalation_ms() : 500.0) * 1e6);
+    change_ramp_ms = s.has_change_ramp_ms() ? s.change_ramp_ms() : 200.0;
+    period_s = 1.0 / params.sample_rate_hz;
+    live = guard.configured_inputs();
+    // Two free-running loops always add at least one sample of round trip.
+    live.round_trip_samples = std::max(1, live.round_trip_samples);
+    master.name = "master";
+    slave.name = "slave";
+    for (NodeView* n : {&master, &slave}) {
+      n->oscillation = std::make_unique<OscillationMonitor>(period_s, 0.5, oscillation_threshold_m);
+      n->passivity = std::make_unique<PassivityObserver>(period_s);
+    }
+    if (!s.secret_key_file().empty()) {
+      own_key = transport::load_secret_key_file(s.secret_key_file());
+    }
+  }
+
+  // --- sockets ---------------------------------------------------------------------------
+  zmq::socket_t subscribe(const std::string& endpoint, const std::string& server_key) {
+    transport::LinkSecurity sec;
+    sec.insecure = loaded.config.security().insecure();
+    sec.own = own_key;
+    if (own_key && !server_key.empty()) sec.server_public_key = server_key;
+    zmq::socket_t s(ctx, zmq::socket_type::sub);
+    s.set(zmq::sockopt::linger, 0);
+    s.set(zmq::sockopt::rcvhwm, 10000);
+    (void)transport::apply_link_security(ctx, s, endpoint, transport::LinkRole::kClient, sec);
+    s.set(zmq::sockopt::subscribe, "");
+    s.connect(endpoint);
+    return s;
+  }
+
+  transport::LinkSecurity server_security() const {
+    transport::LinkSecurity sec;
+    sec.insecure = loaded.config.security().insecure();
+    sec.own = own_key;
+    for (const std::string& k : loaded.config.security().client_public_keys()) {
+      sec.allowed_client_keys.push_back(k);
+    }
+    return sec;
+  }
+
+  std::optional<v1::NodeCommandReply> command(const config::NodeSetup& node,
+                                              const v1::NodeCommand& c) {
+    transport::LinkSecurity sec;
+    sec.insecure = loaded.config.security().insecure();
+    sec.own = own_key;
+    const std::string& key = node.settings.role == transport::Role::kMaster
+                                 ? loaded.config.security().master_public_key()
+                                 : loaded.config.security().slave_public_key();
+    if (own_key && !key.empty()) sec.server_public_key = key;
+    zmq::socket_t client = transport::make_command_client(ctx, node.endpoints.command, sec, 500ms);
+    const auto bytes = transport::request_reply(client, c.SerializeAsString());
+    if (!bytes) return std::nullopt;
+    v1::NodeCommandReply r;
+    if (!r.ParseFromString(*bytes)) return std::nullopt;
+    return r;
+  }
+
+  // --- recording ---------------------------------------------------------------------------
+  void record(const std::string& topic, const google::protobuf::Message& m) {
+    if (!opts.sink) return;
+    opts.sink->record(topic, m.GetDescriptor()->full_name(), monotonic_ns(), m.SerializeAsString());
+  }
+
+  // --- reports and alarms ------------------------------------------------------------------
+  std::uint64_t master_sequence() const {
+    if (!master.last || master.last->cycles_size() == 0) return 0;
+    return master.last->cycles(master.last->cycles_size() - 1).sequence();
+  }
+
+  v1::StabilityReport make_report(const Assessment& a, const std::string& reason) const {
+    v1::StabilityReport r;
+    r.set_time_ns(monotonic_ns());
+    r.set_master_sequence(master_sequence());
+    r.set_verdict(std::string(stability::to_string(a.verdict)));
+    r.set_min_damping_ratio(a.min_damping_ratio);
+    r.set_required_damping_ratio(a.required_damping_ratio);
+    if (a.worst_human) {
+      r.mutable_worst_human()->set_mass_kg(a.worst_human->impedance.mass_kg);
+      r.mutable_worst_human()->set_damping_ns_per_m(a.worst_human->impedance.damping_Ns_per_m);
+      r.mutable_worst_human()->set_stiffness_n_per_m(a.worst_human->impedance.stiffness_N_per_m);
+      r.set_worst_human_force_n(a.worst_human->force_N);
+    }
+    r.set_master_fixture_stiffness_n_per_m(a.inputs.master_fixture_N_per_m);
+    r.set_slave_fixture_stiffness_n_per_m(a.inputs.slave_fixture_N_per_m);
+    if (a.max_master_N_per_m) r.set_max_stable_master_stiffness_n_per_m(*a.max_master_N_per_m);
+    if (a.max_slave_N_per_m) r.set_max_stable_slave_stiffness_n_per_m(*a.max_slave_N_per_m);
+    if (const auto m = a.master_margin()) r.set_master_margin(*m);
+    if (const auto m = a.slave_margin()) r.set_slave_margin(*m);
+    r.set_round_trip_samples(a.inputs.round_trip_samples);
+    r.set_measured_round_trip_ns(measured_round_trip_ns);
+    r.set_sample_rate_hz(a.inputs.sample_rate_hz);
+    *r.mutable_gains() = to_proto(a.inputs.gains);
+    r.set_reason(reason);
+    r.set_parameter_change_id(change_id);
+    return r;
+  }
+
+  void publish_report(const std::string& reason) {
+    const Assessment& a = guard.assess(live);
+    report = make_report(a, reason);
+    const std::string bytes = report.SerializeAsString();
+    (void)report_pub->send(zmq::buffer("report"),
+                           zmq::send_flags::sndmore | zmq::send_flags::dontwait);
+    (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+    record("/supervisor/stability", report);
+    spdlog::info("stability: {} (min damping ratio {:.4f}, round trip {} samples) [{}]",
+                 report.verdict(), report.min_damping_ratio(), report.round_trip_samples(), reason);
+  }
+
+  void alarm(v1::Alarm::Severity severity, const std::string& kind, const std::string& side,
+             const std::string& message,
+             std::vector<std::tuple<std::string, double, std::string>> evidence,
+             const std::string& action = "") {
+    const std::string key = kind + "/" + side;
+    const std::int64_t now = monotonic_ns();
+    auto it = last_alarm_ns.find(key);
+    if (severity < v1::Alarm::ACTION && it != last_alarm_ns.end() &&
+        now - it->second < 2'000'000'000) {
+      return;  // one of a kind per side per 2 s, unless the supervisor acted
+    }
+    last_alarm_ns[key] = now;
+    v1::Alarm a;
+    a.set_time_ns(now);
+    a.set_master_sequence(master_sequence());
+    a.set_severity(severity);
+    a.set_kind(kind);
+    a.set_side(side);
+    a.set_message(message);
+    a.set_action(action);
+    for (const auto& [name, value, unit] : evidence) {
+      v1::Evidence* e = a.add_evidence();
+      e->set_name(name);
+      e->set_value(value);
+      e->set_unit(unit);
+    }
+    recent_alarms.push_front(a);
+    while (recent_alarms.size() > 50) recent_alarms.pop_back();
+    const std::string bytes = a.SerializeAsString();
+    (void)report_pub->send(zmq::buffer("alarm"),
+                           zmq::send_flags::sndmore | zmq::send_flags::dontwait);
+    (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+    record("/supervisor/alarms", a);
+    std::string ev;
+    for (const auto& [name, value, unit] : evidence)
+      ev += fmt::format(" {}={:.6g}{}", name, value, unit);
+    const std::string text =
+        fmt::format("ALARM {} {} {}: {}{}{}", v1::Alarm::Severity_Name(severity), kind, side,
+                    message, ev, action.empty() ? "" : " -> " + action);
+    if (severity >= v1::Alarm::WARNING) {
+      spdlog::warn("{}", text);
+    } else {
+      spdlog::info("{}", text);
+    }
+  }
+
+  // --- parameter changes ---------------------------------------------------------------------
+  v1::ParameterChangeReply apply_change(const ChangeRequest& change, bool dry_run,
+                                        const std::string& why) {
+    v1::ParameterChangeReply reply;
+    const Decision d = guard.check(live, change);
+    *reply.mutable_prediction() = make_report(d.prediction, "prediction: " + why);
+    reply.set_reason(d.reason);
+    if (!d.accepted || dry_run) {
+      reply.set_accepted(d.accepted && dry_run ? true : false);
+      if (d.accepted && dry_run) reply.set_reason(d.reason + " (dry run: not applied)");
+      return reply;
+    }
+    if (!master.last || !slave.last) {
+      reply.set_accepted(false);
+      reply.set_reason("refused: both nodes must be running to apply a change");
+      return reply;
+    }
+    const std::uint64_t id = change_id + 1;
+    const std::uint64_t at =
+        master_sequence() + static_cast<std::uint64_t>(std::lround(0.2 * params.sample_rate_hz));
+    v1::NodeCommand c;
+    c.set_kind(v1::NodeCommand::RETUNE);
+    v1::ParameterUpdate* u = c.mutable_update();
+    u->set_change_id(id);
+    *u->mutable_gains() = to_proto(d.proposed.gains);
+    u->set_master_fixture_stiffness_n_per_m(d.proposed.master_fixture_N_per_m);
+    u->set_master_fixture_position_m(params.master_fixture.position_m);
+    u->set_slave_fixture_stiffness_n_per_m(d.proposed.slave_fixture_N_per_m);
+    u->set_slave_fixture_position_m(params.slave_fixture.position_m);
+    u->set_apply_at_master_sequence(at);
+    u->set_ramp_ms(change_ramp_ms);
+    for (const config::NodeSetup* n : {&master_setup, &slave_setup}) {
+      const auto r = command(*n, c);
+      if (!r || !r->ok()) {
+        reply.set_accepted(false);
+        reply.set_reason(fmt::format("refused: {} did not take the change ({})",
+                                     n == &master_setup ? "master" : "slave",
+                                     r ? r->message() : std::string("no reply")));
+        return reply;
+      }
+    }
+    change_id = id;
+    live = d.proposed;
+    reply.set_accepted(true);
+    reply.set_change_id(id);
+    reply.set_apply_at_master_sequence(at);
+    publish_report("parameter change " + std::to_string(id) + ": " + why);
+    return reply;
+  }
+
+  // --- telemetry -----------------------------------------------------------------------------
+  void on_telemetry(NodeView& n, const v1::Telemetry& t, bool is_master) {
+    const std::int64_t now = monotonic_ns();
+    if (n.session_id != 0 && t.session_id() != n.session_id) {
+      alarm(v1::Alarm::WARNING, "node_state", n.name, "restarted (new session)",
+            {{"session_id", static_cast<double>(t.session_id() % 1000000), ""}});
+      n.oscillation->clear();
+      n.passivity->reset();
+    }
+    n.session_id = t.session_id();
+    if (n.mode != t.mode() && (t.mode() == v1::SAFE || t.mode() == v1::FAULT)) {
+      alarm(v1::Alarm::WARNING, "node_state", n.name,
+            fmt::format("went {} ({})", v1::NodeMode_Name(t.mode()), t.mode_reason()), {});
+    }
+    n.mode = t.mode();
+    n.last = t;
+    n.last_received_ns = now;
+    for (const v1::CycleRecord& c : t.cycles()) {
+      n.cycle_times.push_back(c.sample_time_ns());
+      while (n.cycle_times.size() > 2000) n.cycle_times.pop_front();
+      if (c.mode() == v1::ENGAGED || c.mode() == v1::CLUTCHED) {
+        n.oscillation->add(c.position_m());
+        // The port's force along +x: the human's on the master handle; minus the measured
+        // environment force on the slave (the load cell reads the slave's push, compression +).
+        n.passivity->add(is_master ? c.force_n() : -c.force_n(), c.velocity_m_per_s());
+      } else {
+        n.oscillation->clear();
+        n.passivity->reset();
+      }
+    }
+    record(is_master ? "/master/telemetry" : "/slave/telemetry", t);
+  }
+
+  void check_live() {
+    const std::int64_t now = monotonic_ns();
+    // Heartbeats.
+    for (NodeView* n : {&master, &slave}) {
+      if (n->last && now - n->last_received_ns > 500'000'000) {
+        alarm(v1::Alarm::WARNING, "heartbeat", n->name, "no telemetry for over 0.5 s",
+              {{"silent", static_cast<double>(now - n->last_received_ns) * 1e-9, "s"}});
+      }
+      if (!n->last) continue;
+      // Overruns and loss over the last second.
+      if (now - n->overrun_check_ns >= 1'000'000'000) {
+        const std::uint64_t overruns = n->last->loop().overruns();
+        const std::uint64_t lost = n->last->link().lost();
+        const std::uint64_t accepted = n->last->link().accepted();
+        if (n->overrun_check_ns != 0) {
+          const std::uint64_t d_over = overruns - std::min(overruns, n->overruns_at_check);
+          if (d_over > 10) {
+            alarm(v1::Alarm::WARNING, "overruns", n->name, "loop overran in the last second",
+                  {{"overruns", static_cast<double>(d_over), ""},
+                   {"wakeup_p99", static_cast<double>(n->last->loop().wakeup_p99_ns()) * 1e-3,
+                    "us"}});
+          }
+          const double d_lost = static_cast<double>(lost - std::min(lost, n->lost_at_check));
+          const double d_acc =
+              static_cast<double>(accepted - std::min(accepted, n->accepted_at_check));
+          if (d_lost + d_acc > 0 && d_lost / (d_lost + d_acc) > 0.01) {
+            alarm(v1::Alarm::WARNING, "loss", n->name, "more than 1 % of peer states lost",
+                  {{"loss", d_lost / (d_lost + d_acc), ""}});
+          }
+        }
+        n->overruns_at_check = overruns;
+        n->lost_at_check = lost;
+        n->accepted_at_check = accepted;
+        n->overrun_check_ns = now;
+      }
+    }
+    // Measured rate and round trip -> the model.
+    LiveInputs next = live;
+    if (master.cycle_times.size() > 500) {
+      const double span =
+          static_cast<double>(master.cycle_times.back() - master.cycle_times.front());
+      const double rate = 1e9 * static_cast<double>(master.cycle_times.size() - 1) / span;
+      // The loops run on a grid: a rate within 0.5 % of the file's is the file's.
+      if (std::abs(rate - params.sample_rate_hz) > 0.005 * params.sample_rate_hz)
+        next.sample_rate_hz = rate;
+    }
+    std::int64_t rtt = 0;
+    for (NodeView* n : {&master, &slave}) {
+      if (n->last) rtt = std::max(rtt, n->last->link().round_trip_p99_ns());
+    }
+    measured_round_trip_ns = rtt;
+    if (rtt > 0) {
+      const double period_ns = 1e9 / next.sample_rate_hz;
+      const int samples =
+          std::max(1, static_cast<int>(std::ceil(static_cast<double>(rtt) / period_ns - 1e-9)));
+      next.round_trip_samples = std::max(samples, params.round_trip_delay_samples);
+    }
+    if (!(next == live)) {
+      const bool rtt_grew = next.round_trip_samples > live.round_trip_samples;
+      live = next;
+      alarm(v1::Alarm::INFO, "round_trip", "system",
+            fmt::format("model updated: round trip {} samples at {:.1f} Hz",
+                        live.round_trip_samples, live.sample_rate_hz),
+            {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
+      publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
+      if (rtt_grew && !guard.assess(live).acceptable())
+        lower_fixtures("the measured round trip grew");
+    }
+    // Oscillation and passivity, with escalation.
+    bool misbehaving = false;
+    for (NodeView* n : {&master, &slave}) {
+      std::string what;
+      std::vector<std::tuple<std::string, double, std::string>> evidence;
+      if (n->oscillation->full()) {
+        const scene::Oscillation o = n->oscillation->check();
+        if (o.detected) {
+          what = "sustained oscillation";
+          evidence = {{"amplitude", o.amplitude_m * 1e3, "mm"},
+                      {"frequency", o.frequency_hz, "Hz"},
+                      {"previous_amplitude", o.previous_amplitude_m * 1e3, "mm"}};
+        }
+      }
+      if (what.empty() && n->passivity->min_energy_J() < -passivity_threshold_J) {
+        what = "active port (passivity observer)";
+        evidence = {{"energy", n->passivity->energy_J(), "J"},
+                    {"min_energy", n->passivity->min_energy_J(), "J"}};
+      }
+      if (what.empty()) {
+        n->oscillating_since_ns = 0;
+        continue;
+      }
+      misbehaving = true;
+      if (n->oscillating_since_ns == 0) {
+        n->oscillating_since_ns = now;
+        // Both nodes hand over their last seconds at full rate (recorded with their telemetry).
+        v1::NodeCommand fr;
+        fr.set_kind(v1::NodeCommand::FLIGHT_RECORD);
+        (void)command(master_setup, fr);
+        (void)command(slave_setup, fr);
+      }
+      const std::int64_t lasting = now - n->oscillating_since_ns;
+      const std::string kind = what == "sustained oscillation" ? "oscillation" : "passivity";
+      if (lasting < escalation_ns) {
+        alarm(v1::Alarm::WARNING, kind, n->name, what, evidence);
+      } else if (escalation_stage == 0) {
+        escalation_stage = 1;
+        escalated_ns = now;
+        const std::string action = lower_fixtures(what + " on the " + n->name);
+        alarm(v1::Alarm::ACTION, kind, n->name, what, evidence, action);
+      } else if (escalation_stage == 1 && now - escalated_ns >= escalation_ns) {
+        escalation_stage = 2;
+        v1::NodeCommand c;
+        c.set_kind(v1::NodeCommand::DISENGAGE);
+        const auto rm = command(master_setup, c);
+        const auto rs = command(slave_setup, c);
+        alarm(v1::Alarm::CRITICAL, kind, n->name, what + " persisted after lowering the fixtures",
+              evidence,
+              fmt::format("disengaged both nodes (master {}, slave {})",
+                          rm ? v1::NodeMode_Name(rm->mode()) : "no reply",
+                          rs ? v1::NodeMode_Name(rs->mode()) : "no reply"));
+      }
+    }
+    if (!misbehaving && escalation_stage != 0 && now - escalated_ns > 2 * escalation_ns) {
+      escalation_stage = 0;
+    }
+  }
+
+  // Lowers the fixtures in use to half their stiffness (never above half the predicted
+  // maximum) through the guard; returns what was done.
+  std::string lower_fixtures(const std::string& why) {
+    ChangeRequest change;
+    if (live.master_fixture_N_per_m > 0.0) {
+      change.master_fixture_N_per_m = guard.lowered_stiffness(live, false, 0.5);
+    }
+    if (live.slave_fixture_N_per_m > 0.0) {
+      change.slave_fixture_N_per_m = guard.lowered_stiffness(live, true, 0.5);
+    }
+    if (!change.master_fixture_N_per_m && !change.slave_fixture_N_per_m) {
+      return "no fixture to lower";
+    }
+    const v1::ParameterChangeReply r = apply_change(change, false, "lowered: " + why);
+    v1::ParameterChangeRecord rec;
+    rec.mutable_request()->set_requested_by("supervisor");
+    if (change.master_fixture_N_per_m) {
+      rec.mutable_request()->set_master_fixture_stiffness_n_per_m(*change.master_fixture_N_per_m);
+    }
+    if (change.slave_fixture_N_per_m) {
+      rec.mutable_request()->set_slave_fixture_stiffness_n_per_m(*change.slave_fixture_N_per_m);
+    }
+    *rec.mutable_reply() = r;
+    rec.set_time_ns(monotonic_ns());
+    record("/supervisor/parameter_changes", rec);
+    return r.accepted()
+               ? fmt::format("lowered fixtures (change {}): master {:.0f} N/m, slave {:.0f} N/m",
+                             r.change_id(), live.master_fixture_N_per_m, live.slave_fixture_N_per_m)
+               : "could not lower the fixtures: " + r.reason();
+  }
+
+  void on_request(const v1::SupervisorRequest& req, v1::SupervisorReply& reply) {
+    if (req.has_change()) {
+      const v1::ParameterChangeRequest& c = req.change();
+      ChangeRequest change;
+      if (c.has_gains()) change.gains = from_proto(c.gains());
+      if (c.has_master_fixture_stiffness_n_per_m()) {
+        change.master_fixture_N_per_m = c.master_fixture_stiffness_n_per_m();
+      }
+      if (c.has_slave_fixture_stiffness_n_per_m()) {
+        change.slave_fixture_N_per_m = c.slave_fixture_stiffness_n_per_m();
+      }
+      *reply.mutable_change() =
+          apply_change(change, c.dry_run(),
+                       "requested by " +
+                           (c.requested_by().empty() ? std::string("operator") : c.requested_by()));
+      v1::ParameterChangeRecord rec;
+      *rec.mutable_request() = c;
+      *rec.mutable_reply() = reply.change();
+      rec.set_time_ns(monotonic_ns());
+      record("/supervisor/parameter_changes", rec);
+      spdlog::info("change request ({}): {}", c.requested_by(), reply.change().reason());
+    } else {
+      v1::SupervisorStatus* s = reply.mutable_status();
+      *s->mutable_report() = report;
+      for (const v1::Alarm& a : recent_alarms) *s->add_recent_alarms() = a;
+      if (opts.sink) {
+        s->set_recording_file(opts.sink->file());
+        s->set_recorded_messages(opts.sink->recorded());
+        s->set_recording_drops(opts.sink->drops());
+      }
+      const std::int64_t now = monotonic_ns();
+      s->set_master_alive(master.last && now - master.last_received_ns < 500'000'000);
+      s->set_slave_alive(slave.last && now - slave.last_received_ns < 500'000'000);
+    }
+  }
+
+  void run(const std::atomic<bool>& stop) {
+    zap.emplace(ctx);
+    report_pub.emplace(
+        transport::make_telemetry_publisher(ctx, report_endpoint, server_security()));
+    request_rep.emplace(transport::make_command_server(ctx, request_endpoint, server_security()));
+    zmq::socket_t master_sub =
+        subscribe(master_setup.endpoints.telemetry, loaded.config.security().master_public_key());
+    zmq::socket_t slave_sub =
+        subscribe(slave_setup.endpoints.telemetry, loaded.config.security().slave_public_key());
+    record("/config", loaded.config);
+    publish_report("start");
+    spdlog::info("supervising master {} and slave {}; reports on {}, requests on {}",
+                 master_setup.endpoints.telemetry, slave_setup.endpoints.telemetry, report_endpoint,
+                 request_endpoint);
+    std::int64_t next_check = monotonic_ns();
+    while (!stop.load()) {
+      zmq::pollitem_t items[] = {{master_sub.handle(), 0, ZMQ_POLLIN, 0},
+                                 {slave_sub.handle(), 0, ZMQ_POLLIN, 0},
+                                 {request_rep->handle(), 0, ZMQ_POLLIN, 0}};
+      try {
+        (void)zmq::poll(items, 3, 20ms);
+      } catch (const zmq::error_t&) {
+        continue;
+      }
+      zmq::message_t msg;
+      for (int i = 0; i < 2; ++i) {
+        zmq::socket_t& sock = i == 0 ? master_sub : slave_sub;
+        while (sock.recv(msg, zmq::recv_flags::dontwait)) {
+          v1::Telemetry t;
+          if (!t.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) continue;
+          on_telemetry(i == 0 ? master : slave, t, i == 0);
+        }
+      }
+      if (request_rep->recv(msg, zmq::recv_flags::dontwait)) {
+        v1::SupervisorRequest req;
+        v1::SupervisorReply reply;
+        if (!req.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) {
+          reply.set_error("malformed request");
+        } else {
+          try {
+            on_request(req, reply);
+          } catch (const std::exception& e) {
+            reply.set_error(e.what());
+          }
+        }
+        const std::string out = reply.SerializeAsString();
+        (void)request_rep->send(zmq::buffer(out), zmq::send_flags::dontwait);
+      }
+      if (monotonic_ns() >= next_check) {
+        next_check += 100'000'000;
+        check_live();
+      }
+    }
+    spdlog::info("stopping");
+  }
+
+  config::LoadedConfig loaded;
+  TeleopParams params;
+  StabilityGuard guard;
+  SupervisorOptions opts;
+  config::NodeSetup master_setup;
+  config::NodeSetup slave_setup;
+  std::string report_endpoint;
+  std::string request_endpoint;
+  double oscillation_threshold_m{0.0};
+  double passivity_threshold_J{0.0};
+  std::int64_t escalation_ns{0};
+  double change_ramp_ms{200.0};
+  double period_s{0.001};
+  std::optional<transport::CurveKeyPair> own_key{};
+  zmq::context_t ctx{1};
+  std::optional<transport::ZapHandler> zap{};
+  std::optional<zmq::socket_t> report_pub{};
+  std::optional<zmq::socket_t> request_rep{};
+  NodeView master{};
+  NodeView slave{};
+  LiveInputs live{};
+  std::int64_t measured_round_trip_ns{0};
+  std::uint64_t change_id{0};
+  v1::StabilityReport report{};
+  std::deque<v1::Alarm> recent_alarms{};
+  std::map<std::string, std::int64_t> last_alarm_ns{};
+  int escalation_stage{0};
+  std::int64_t escalated_ns{0};
+};
+
+SupervisorApp::SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options)
+    : impl_(std::make_unique<Impl>(config, std::move(options))) {}
+
+SupervisorApp::~SupervisorApp() = default;
+
+void SupervisorApp::run(const std::atomic<bool>& stop) { impl_->run(stop); }
+
+}  // namespace teleop::supervisor

@@ -1,0 +1,56 @@
+// teleop-supervisor (issue 5): subscribes to both nodes' telemetry, analyses the running
+// configuration with what the nodes really run (measured rate and round trip, parameters in
+// force), publishes StabilityReports and Alarms, guards parameter changes (analysed first,
+// applied by both nodes at an agreed master sequence, ramped), watches heartbeats, overruns,
+// loss, oscillation and passivity, escalates (warn -> lower the fixture stiffness within the
+// guard -> disengage both nodes), and records the session.
+#pragma once
+
+#include <atomic>
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/config/config_loader.hpp"
+
+namespace teleop::supervisor {
+
+// Where recorded messages go (the MCAP session file; tests may capture them).
+class RecordSink {
+ public:
+  virtual ~RecordSink() = default;
+  // `type` names the protobuf message type of `bytes` (its full name).
+  virtual void record(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
+                      const std::string& bytes) = 0;
+  [[nodiscard]] virtual std::string file() const { return {}; }
+  [[nodiscard]] virtual std::uint64_t recorded() const { return 0; }
+  [[nodiscard]] virtual std::uint64_t drops() const { return 0; }
+};
+
+struct SupervisorOptions {
+  std::unique_ptr<RecordSink> sink{};  // none: no recording
+  std::string log_file{};              // rotating log file; empty: terminal only
+};
+
+class SupervisorApp {
+ public:
+  SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options);
+  ~SupervisorApp();
+  SupervisorApp(const SupervisorApp&) = delete;
+  SupervisorApp& operator=(const SupervisorApp&) = delete;
+
+  // Runs until `stop` is set. Throws on a socket or key error at start.
+  void run(const std::atomic<bool>& stop);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// main() of teleop-supervisor: `teleop-supervisor CONFIG [--set PATH=VALUE]... [--no-record]
+// [--record-dir DIR]`. Runs until SIGINT/SIGTERM.
+int run_supervisor_main(int argc, char** argv);
+
+}  // namespace teleop::supervisor

@@ -1,0 +1,114 @@
+// main() of teleop-supervisor.
+#include <signal.h>
+#include <spdlog/sinks/rotating_file_sink.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <atomic>
+#include <filesystem>
+#include <iostream>
+#include <optional>
+#include <thread>
+
+#include "supervisor/daemon/session_recorder.hpp"
+#include "supervisor/daemon/supervisor_app.hpp"
+
+namespace teleop::supervisor {
+namespace {
+
+void usage(std::ostream& os) {
+  os << "usage: teleop-supervisor CONFIG [--set PATH=VALUE]... [--record-dir DIR] [--no-record]\n\n"
+        "Watches the teleoperator CONFIG describes: analyses it with the measured round trip,\n"
+        "publishes stability reports and alarms, guards parameter changes, escalates when the\n"
+        "live system misbehaves, and records the session (MCAP) in DIR. Stops on SIGINT/SIGTERM.\n";
+}
+
+}  // namespace
+
+int run_supervisor_main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  std::string config_path;
+  std::vector<std::string> overrides;
+  std::optional<std::string> record_dir;
+  bool record = true;
+  for (std::size_t i = 0; i < args.size(); ++i) {
+    if (args[i] == "--help" || args[i] == "-h") {
+      usage(std::cout);
+      return 0;
+    }
+    if (args[i] == "--set" && i + 1 < args.size()) {
+      overrides.push_back(args[++i]);
+    } else if (args[i].rfind("--set=", 0) == 0) {
+      overrides.push_back(args[i].substr(6));
+    } else if (args[i] == "--record-dir" && i + 1 < args.size()) {
+      record_dir = args[++i];
+    } else if (args[i] == "--no-record") {
+      record = false;
+    } else if (config_path.empty() && args[i].rfind("--", 0) != 0) {
+      config_path = args[i];
+    } else {
+      std::cerr << "teleop-supervisor: unexpected argument '" << args[i] << "'\n";
+      usage(std::cerr);
+      return 2;
+    }
+  }
+  if (config_path.empty()) {
+    usage(std::cerr);
+    return 2;
+  }
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  std::unique_ptr<SupervisorApp> app;
+  try {
+    const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
+    const v1::Supervisor& s = loaded.config.supervisor();
+    const bool recording = record && (!s.has_record() || s.record());
+    const std::filesystem::path dir =
+        record_dir ? *record_dir : (s.record_dir().empty() ? "." : s.record_dir());
+    SupervisorOptions options;
+    std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
+    if (recording) {
+      std::filesystem::create_directories(dir);
+      options.sink = make_session_recorder(dir);
+      sinks.push_back(std::make_shared<spdlog::sinks::rotating_file_sink_mt>(
+          (dir / "teleop-supervisor.log").string(), 5 * 1024 * 1024, 3));
+    }
+    auto logger = std::make_shared<spdlog::logger>("teleop-supervisor", sinks.begin(), sinks.end());
+    logger->set_pattern("[%H:%M:%S.%e] [teleop-supervisor] [%^%l%$] %v");
+    spdlog::set_default_logger(logger);
+    if (options.sink) spdlog::info("recording to {}", options.sink->file());
+    app = std::make_unique<SupervisorApp>(loaded, std::move(options));
+  } catch (const config::ConfigError& e) {
+    std::cerr << "teleop-supervisor: invalid configuration:\n" << e.what() << "\n";
+    return 1;
+  } catch (const std::exception& e) {
+    std::cerr << "teleop-supervisor: " << e.what() << "\n";
+    return 1;
+  }
+  std::atomic<bool> stop{false};
+  std::thread waiter([&] {
+    int sig = 0;
+    sigwait(&signals, &sig);
+    stop = true;
+  });
+  int rc = 0;
+  try {
+    app->run(stop);
+  } catch (const std::exception& e) {
+    std::cerr << "teleop-supervisor: " << e.what() << "\n";
+    rc = 1;
+  }
+  if (!stop.load()) pthread_kill(waiter.native_handle(), SIGTERM);
+  waiter.join();
+  app.reset();  // closes the session file (summary written)
+  spdlog::info("stopped");
+  return rc;
+}
+
+}  // namespace teleop::supervisor
+
+int main(int argc, char** argv) { return teleop::supervisor::run_supervisor_main(argc, argv); }

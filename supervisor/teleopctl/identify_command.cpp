@@ -1,0 +1,369 @@
+#include "supervisor/teleopctl/identify_command.hpp"
+
+#include <fmt/format.h>
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <ostream>
+#include <stdexcept>
+#include <utility>
+
+#include "supervisor/teleopctl/cli_args.hpp"
+
+namespace teleop::ctl {
+
+namespace {
+
+using nlohmann::json;
+
+// A fit below this explains too little of the force to trust (the paper's were 0.91 and 0.92).
+constexpr double kPoorFit = 0.9;
+// A row of `teleopctl simulate --out` is written after the physics step: its time, true
+// positions and the human's and environment's forces are at the step's end, its commands were
+// held over the step, and its *_sensed_m are the samples the laws read at the step's start, one
+// row earlier.
+constexpr std::size_t kSimulateSensedLag = 1;
+
+struct Csv {
+  std::vector<std::string> names{};
+  std::vector<std::vector<double>> columns{};
+};
+
+[[nodiscard]] std::string trim_cr(std::string line) {
+  if (!line.empty() && line.back() == '\r') line.pop_back();
+  return line;
+}
+
+[[nodiscard]] Csv read_csv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(fmt::format("cannot read '{}'", path));
+  Csv csv;
+  std::string line;
+  if (!std::getline(in, line)) throw std::runtime_error(fmt::format("{}: empty file", path));
+  csv.names = split(trim_cr(line), ',');
+  csv.columns.resize(csv.names.size());
+  std::size_t line_no = 1;
+  while (std::getline(in, line)) {
+    ++line_no;
+    line = trim_cr(line);
+    if (line.empty()) continue;
+    const std::vector<std::string> cells = split(line, ',');
+    if (cells.size() != csv.names.size()) {
+      throw std::runtime_error(fmt::format("{}:{}: {} cells, the header has {}", path, line_no,
+                                           cells.size(), csv.names.size()));
+    }
+    for (std::size_t c = 0; c < cells.size(); ++c) {
+      const std::string& cell = cells[c];
+      double v = 0.0;
+      const char* last = cell.data() + cell.size();
+      const auto [ptr, ec] = std::from_chars(cell.data(), last, v);
+      if (ec != std::errc{} || ptr != last || !std::isfinite(v)) {
+        throw std::runtime_error(fmt::format("{}:{}: column '{}': '{}' is not a finite number",
+                                             path, line_no, csv.names[c], cell));
+      }
+      csv.columns[c].push_back(v);
+    }
+  }
+  if (csv.columns.empty() || csv.columns.front().empty()) {
+    throw std::runtime_error(fmt::format("{}: no data rows", path));
+  }
+  return csv;
+}
+
+[[nodiscard]] const std::vector<double>& column(const Csv& csv, const std::string& path,
+                                                const std::string& name, const char* what) {
+  for (std::size_t c = 0; c < csv.names.size(); ++c) {
+    if (csv.names[c] == name) return csv.columns[c];
+  }
+  std::string known;
+  for (const std::string& n : csv.names) known += (known.empty() ? "" : ", ") + n;
+  throw std::runtime_error(
+      fmt::format("{}: no column '{}' for the {} (columns: {})", path, name, what, known));
+}
+
+// Sum of signed columns: an exact column name, or terms joined by '+' and '-'.
+[[nodiscard]] std::vector<double> evaluate(const Csv& csv, const std::string& path,
+                                           const std::string& expression, const char* what) {
+  const std::size_t rows = csv.columns.front().size();
+  for (const std::string& n : csv.names) {
+    if (n == expression) return column(csv, path, expression, what);
+  }
+  std::vector<double> sum(rows, 0.0);
+  std::size_t i = 0;
+  while (i < expression.size()) {
+    double sign = 1.0;
+    if (expression[i] == '+' || expression[i] == '-') {
+      sign = expression[i] == '-' ? -1.0 : 1.0;
+      ++i;
+    }
+    const std::size_t end = expression.find_first_of("+-", i);
+    const std::string name = expression.substr(i, end == std::string::npos ? end : end - i);
+    if (name.empty()) {
+      throw std::runtime_error(fmt::format("the {} '{}' has an empty term", what, expression));
+    }
+    const std::vector<double>& c = column(csv, path, name, what);
+    for (std::size_t r = 0; r < rows; ++r) sum[r] += sign * c[r];
+    i = end == std::string::npos ? expression.size() : end;
+  }
+  return sum;
+}
+
+struct IdentifyArgs {
+  std::vector<std::string> files{};
+  std::optional<std::string> device{};  // master | slave
+  CsvColumns columns{};
+  bool custom_columns{false};
+  stability::IdentifyOptions options{};
+  bool json{false};
+};
+
+[[nodiscard]] int parse_count(const std::string& text, const char* flag, int min) {
+  int v = 0;
+  const auto [p, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc{} || p != text.data() + text.size() || v < min) {
+    throw UsageError(fmt::format("{}: '{}' is not an integer >= {}", flag, text, min));
+  }
+  return v;
+}
+
+[[nodiscard]] IdentifyArgs parse_identify_args(const std::vector<std::string>& args) {
+  IdentifyArgs a;
+  std::optional<std::string> position;
+  std::optional<std::string> force;
+  std::optional<std::string> held;
+  ArgCursor c(args);
+  while (c.next()) {
+    const std::string& arg = c.arg();
+    if (arg == "--device") {
+      const std::string& v = c.value("--device");
+      if (v != "master" && v != "slave") {
+        throw UsageError(fmt::format("--device: '{}' is neither master nor slave", v));
+      }
+      a.device = v;
+    } else if (arg == "--time") {
+      a.columns.time = c.value("--time");
+    } else if (arg == "--rate") {
+      const std::string& v = c.value("--rate");
+      a.columns.rate_hz = parse_number(v, "--rate");
+      if (!(a.columns.rate_hz > 0.0)) {
+        throw UsageError(fmt::format("--rate: '{}' is not a positive rate in Hz", v));
+      }
+    } else if (arg == "--position") {
+      position = c.value("--position");
+    } else if (arg == "--force") {
+      force = c.value("--force");
+    } else if (arg == "--held-force") {
+      held = c.value("--held-force");
+    } else if (arg == "--passes") {
+      a.options.smoothing_passes = parse_count(c.value("--passes"), "--passes", 1);
+    } else if (arg == "--trim") {
+      a.options.trim_samples =
+          static_cast<std::size_t>(parse_count(c.value("--trim"), "--trim", 0));
+    } else if (arg == "--raw-force") {
+      a.options.smooth_force = false;
+    } else if (arg == "--json") {
+      a.json = true;
+    } else if (!arg.empty() && arg.front() == '-') {
+      throw UsageError(fmt::format("unknown option '{}'", arg));
+    } else {
+      a.files.push_back(arg);
+    }
+  }
+  if (a.files.empty()) throw UsageError("at least one FILE.csv is required");
+  a.custom_columns = position || force || held;
+  if (a.custom_columns) {
+    if (!position || !force) {
+      throw UsageError("--position and --force go together (--held-force is optional)");
+    }
+    a.columns.position = *position;
+    a.columns.force = *force;
+    a.columns.held_force = held.value_or("");
+  } else if (a.device.value_or("master") == "master") {
+    // The master is pushed by the human's F_h (sampled) and by -F_am (held over each period).
+    a.columns.position = "master_sensed_m";
+    a.columns.force = "human_force_N";
+    a.columns.held_force = "-master_force_N";
+    a.columns.position_lag_rows = kSimulateSensedLag;
+  } else {
+    // The slave by F_as (held) and by -F_e from its environment (sampled).
+    a.columns.position = "slave_sensed_m";
+    a.columns.force = "-environment_force_N";
+    a.columns.held_force = "slave_force_N";
+    a.columns.position_lag_rows = kSimulateSensedLag;
+  }
+  return a;
+}
+
+[[nodiscard]] std::string config_line(const std::optional<std::string>& side, double mass_kg,
+                                      double damping_Ns_per_m) {
+  const std::string device = fmt::format("device {{ mass_kg: {:.4g} damping_Ns_per_m: {:.4g} }}",
+                                         mass_kg, damping_Ns_per_m);
+  return side ? fmt::format("{} {{ {} }}", *side, device) : device;
+}
+
+}  // namespace
+
+stability::Series read_series_csv(const std::string& path, const CsvColumns& columns) {
+  const Csv csv = read_csv(path);
+  stability::Series s;
+  s.position_m = column(csv, path, columns.position, "position");
+  s.force_N = evaluate(csv, path, columns.force, "force");
+  if (!columns.held_force.empty()) {
+    s.held_force_N = evaluate(csv, path, columns.held_force, "held force");
+  }
+  if (columns.rate_hz > 0.0) {
+    s.period_s = 1.0 / columns.rate_hz;
+  } else {
+    s.time_s = column(csv, path, columns.time, "time (or give --rate)");
+  }
+  const std::size_t lag = columns.position_lag_rows;
+  if (lag > 0) {
+    const std::size_t rows = s.position_m.size();
+    if (rows <= lag) {
+      throw std::runtime_error(fmt::format("{}: {} rows, fewer than the position lag", path, rows));
+    }
+    s.position_m.erase(s.position_m.begin(), s.position_m.begin() + static_cast<long>(lag));
+    auto drop_tail = [&](std::vector<double>& v) {
+      if (!v.empty()) v.resize(rows - lag);
+    };
+    drop_tail(s.force_N);
+    drop_tail(s.held_force_N);
+    drop_tail(s.time_s);
+  }
+  return s;
+}
+
+std::string identify_usage() {
+  return "usage: teleopctl identify FILE.csv... [--device master|slave] [--passes N] [--trim N]\n"
+         "                          [--time COL | --rate HZ] [--position COL --force EXPR\n"
+         "                          [--held-force EXPR]] [--raw-force] [--json]\n\n"
+         "Identifies a device's mass and damping, m x'' + b x' = F, by least squares over one\n"
+         "or more recorded runs (stacked), from the position smoothed by a multiple-pass\n"
+         "three-point moving average and differentiated twice, and prints the configuration\n"
+         "line to paste. Drive the device with a force that varies over a band of frequencies\n"
+         "(a random push); a free decay cannot separate m from b.\n\n"
+         "options:\n"
+         "  --device D       a 'teleopctl simulate --out' CSV: which paddle (default master).\n"
+         "                   master: position master_sensed_m, force human_force_N and the\n"
+         "                   held actuator force -master_force_N; slave: slave_sensed_m,\n"
+         "                   -environment_force_N and slave_force_N\n"
+         "  --position COL   any CSV with a header: the position column, m\n"
+         "  --force EXPR     the external force along +x sampled with the position, N: a\n"
+         "                   column, or signed columns such as 'load_N-bias_N'\n"
+         "  --held-force EXPR  a force held over the period ending at each row (an actuator\n"
+         "                   command), centred on the row before it is added\n"
+         "  --time COL       sample times, uniform (default time_s)\n"
+         "  --rate HZ        the sample rate instead of a time column\n"
+         "  --passes N       moving-average passes per smoothing stage (default 4; more at\n"
+         "                   higher sample rates)\n"
+         "  --trim N         further samples dropped at each end of each run (default 0)\n"
+         "  --raw-force      do not smooth the force like the regressors\n"
+         "  --json           machine-readable output\n"
+         "  --help           this text\n";
+}
+
+int run_identify(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  IdentifyArgs a;
+  try {
+    for (const std::string& arg : args) {
+      if (arg == "--help" || arg == "-h") {
+        out << identify_usage();
+        return kExitOk;
+      }
+    }
+    a = parse_identify_args(args);
+  } catch (const UsageError& e) {
+    err << "teleopctl identify: " << e.what() << "\n" << identify_usage();
+    return kExitUsage;
+  }
+  return run_guarded("identify", err, [&] {
+    std::vector<stability::Series> runs;
+    for (const std::string& file : a.files) runs.push_back(read_series_csv(file, a.columns));
+    stability::IdentifyResult r;
+    try {
+      r = stability::identify(runs, a.options);
+    } catch (const std::invalid_argument& e) {
+      // Name the file behind "run N".
+      std::string message = e.what();
+      for (std::size_t i = a.files.size(); i-- > 0;) {
+        const std::string tag = fmt::format("run {}:", i + 1);
+        const std::size_t at = message.find(tag);
+        if (at != std::string::npos) {
+          message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, a.files[i]));
+          break;
+        }
+      }
+      throw std::runtime_error(message);
+    }
+    const std::optional<std::string> side =
+        a.custom_columns ? a.device : std::optional<std::string>(a.device.value_or("master"));
+    const bool valid = r.mass_kg > 0.0 && r.damping_Ns_per_m >= 0.0;
+    std::vector<std::string> warnings;
+    if (!valid) {
+      warnings.push_back(fmt::format(
+          "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
+          "force's sign and columns",
+          r.mass_kg, r.damping_Ns_per_m));
+    }
+    if (r.r_squared < kPoorFit) {
+      warnings.push_back(fmt::format(
+          "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (friction, "
+          "contact, a missing force column, too little excitation?)",
+          r.r_squared, kPoorFit));
+    }
+    const std::string line = config_line(side, r.mass_kg, r.damping_Ns_per_m);
+    if (a.json) {
+      json j = {{"device", side ? json(*side) : json(nullptr)},
+                {"mass_kg", r.mass_kg},
+                {"damping_Ns_per_m", r.damping_Ns_per_m},
+                {"r_squared", r.r_squared},
+                {"residual_rms_N", r.residual_rms_N},
+                {"samples", r.samples},
+                {"condition_number", r.condition_number},
+                {"smoothing_passes", a.options.smoothing_passes},
+                {"trim_samples", a.options.trim_samples},
+                {"smooth_force", a.options.smooth_force},
+                {"runs", json::array()},
+                {"warnings", warnings},
+                {"config", valid ? json(line) : json(nullptr)}};
+      for (std::size_t i = 0; i < r.runs.size(); ++i) {
+        j["runs"].push_back({{"file", a.files[i]},
+                             {"samples", r.runs[i].samples},
+                             {"r_squared", r.runs[i].r_squared}});
+      }
+      out << j.dump(2) << "\n";
+    } else {
+      out << fmt::format("identified {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
+                         side ? *side + " device" : "device", r.runs.size(),
+                         r.runs.size() == 1 ? "" : "s", r.samples, a.options.smoothing_passes,
+                         a.options.trim_samples);
+      out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
+      out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
+      out << fmt::format("  r^2               {:.4f} (residual rms {:.3g} N)\n", r.r_squared,
+                         r.residual_rms_N);
+      out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
+      if (r.runs.size() > 1) {
+        for (std::size_t i = 0; i < r.runs.size(); ++i) {
+          out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, a.files[i],
+                             r.runs[i].samples, r.runs[i].r_squared);
+        }
+      }
+      for (const std::string& w : warnings) out << "  warning: " << w << "\n";
+      if (valid) {
+        out << (side ? "configuration to paste:\n"
+                     : "configuration to paste (inside master { } or slave { }):\n")
+            << "  " << line << "\n";
+      }
+    }
+    if (!valid) {
+      err << "teleopctl identify: " << warnings.front() << "\n";
+      return kExitError;
+    }
+    return kExitOk;
+  });
+}
+
+}  // namespace teleop::ctl

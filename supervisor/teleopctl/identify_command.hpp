@@ -1,0 +1,39 @@
+// `teleopctl identify FILE.csv...`: a device's mass and damping by least squares from recorded
+// runs (Abbott-Okamura §4.1, eqs. 32-35; common/stability/identify.hpp), printed with the
+// configuration lines to paste. Reads the CSV time series `teleopctl simulate --out` writes, or
+// any CSV with a header row through --time/--position/--force.
+#pragma once
+
+#include <cstddef>
+#include <iosfwd>
+#include <string>
+#include <vector>
+
+#include "common/stability/identify.hpp"
+
+namespace teleop::ctl {
+
+[[nodiscard]] std::string identify_usage();
+
+// Handles the whole command, usage errors included. Exit codes: 0 identified, 1 unreadable or
+// unusable data (the message names the file, line, column or problem) or a fit with a
+// non-positive mass or negative damping, 2 usage (`--help` prints the usage on `out`, exit 0).
+int run_identify(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// One CSV file as a run: the position column, the sampled force and held force as sums of
+// signed columns ("human_force_N", "-environment_force_N", "a_N-b_N"; an empty held expression
+// means none). position_lag_rows: the position column was sensed that many rows before the
+// instant the forces of its row refer to, so the position of row k + lag goes with the forces
+// of row k (the last rows are dropped). rate_hz > 0 uses that rate instead of the time column.
+// Throws std::runtime_error naming the file, line and column.
+struct CsvColumns {
+  std::string time{"time_s"};
+  std::string position{};
+  std::string force{};
+  std::string held_force{};
+  std::size_t position_lag_rows{0};
+  double rate_hz{0.0};
+};
+[[nodiscard]] stability::Series read_series_csv(const std::string& path, const CsvColumns& columns);
+
+}  // namespace teleop::ctl

@@ -1,0 +1,147 @@
+#include "supervisor/teleopctl/set_command.hpp"
+
+#include <fmt/core.h>
+
+#include <chrono>
+#include <zmq.hpp>
+
+#include "common/transport/zmq_security.hpp"
+#include "common/transport/zmq_sockets.hpp"
+#include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/node_command.hpp"
+
+namespace teleop::ctl {
+
+std::optional<v1::SupervisorReply> supervisor_request(const std::string& endpoint,
+                                                      const v1::SupervisorRequest& request,
+                                                      int timeout_ms,
+                                                      const std::string& secret_key_file,
+                                                      const std::string& server_key) {
+  zmq::context_t ctx(1);
+  transport::LinkSecurity security;
+  if (!secret_key_file.empty()) security.own = transport::load_secret_key_file(secret_key_file);
+  if (!server_key.empty()) security.server_public_key = transport::load_public_key(server_key);
+  zmq::socket_t client = transport::make_command_client(ctx, endpoint, security,
+                                                        std::chrono::milliseconds(timeout_ms));
+  const auto bytes = transport::request_reply(client, request.SerializeAsString());
+  if (!bytes) return std::nullopt;
+  v1::SupervisorReply reply;
+  if (!reply.ParseFromString(*bytes)) return std::nullopt;
+  return reply;
+}
+
+std::string set_usage() {
+  return "usage: teleopctl set PATH=VALUE... [--dry-run] [--supervisor HOST:PORT] [--key FILE]\n"
+         "                    [--server-key KEY|FILE] [--timeout-ms N]\n\n"
+         "Asks the supervisor to change the running teleoperator. It analyses the change first\n"
+         "(with the measured round trip) and applies it only when the predicted minimum damping\n"
+         "ratio meets the required one; both nodes then switch at an agreed master sequence,\n"
+         "ramped. PATH: gains.kpm|kps|kdm|kds|kvm|kvs|kfm, master.fixture.stiffness_N_per_m,\n"
+         "slave.fixture.stiffness_N_per_m. --dry-run only predicts. Supervisor default\n"
+         "127.0.0.1:5567. Exit: 0 accepted, 1 error, 2 usage, 3 refused, 4 no reply.\n";
+}
+
+int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::vector<std::pair<std::string, double>> sets;
+  bool dry_run = false;
+  std::string endpoint = "tcp://127.0.0.1:5567";
+  std::string key;
+  std::string server_key;
+  int timeout_ms = 5000;
+  ArgCursor cur(args);
+  while (cur.next()) {
+    const std::string& a = cur.arg();
+    if (a == "--dry-run") {
+      dry_run = true;
+    } else if (a == "--supervisor") {
+      endpoint = to_endpoint(cur.value("--supervisor"));
+    } else if (a == "--key") {
+      key = cur.value("--key");
+    } else if (a == "--server-key") {
+      server_key = cur.value("--server-key");
+    } else if (a == "--timeout-ms") {
+      timeout_ms = static_cast<int>(parse_number(cur.value("--timeout-ms"), "--timeout-ms"));
+    } else if (a.rfind("--", 0) == 0) {
+      throw UsageError("unknown option '" + a + "'");
+    } else {
+      const auto eq = a.find('=');
+      if (eq == std::string::npos) throw UsageError("expected PATH=VALUE, got '" + a + "'");
+      sets.emplace_back(a.substr(0, eq), parse_number(a.substr(eq + 1), a.substr(0, eq)));
+    }
+  }
+  if (sets.empty()) throw UsageError("nothing to set");
+  static const char* kGains[] = {"kpm", "kps", "kdm", "kds", "kvm", "kvs", "kfm"};
+  for (const auto& [path, value] : sets) {
+    bool known =
+        path == "master.fixture.stiffness_N_per_m" || path == "slave.fixture.stiffness_N_per_m";
+    for (const char* g : kGains) known = known || path == std::string("gains.") + g;
+    if (!known) {
+      throw UsageError("cannot change '" + path +
+                       "' live (gains.*, master.fixture.stiffness_N_per_m and "
+                       "slave.fixture.stiffness_N_per_m can be)");
+    }
+  }
+  return run_guarded("set", err, [&]() -> int {
+    // The gains in force, so that a change of one gain keeps the others.
+    v1::SupervisorRequest status;
+    status.mutable_status();
+    const auto now = supervisor_request(endpoint, status, timeout_ms, key, server_key);
+    if (!now) {
+      err << "teleopctl set: no reply from the supervisor at " << endpoint << "\n";
+      return kExitNoReply;
+    }
+    v1::SupervisorRequest req;
+    v1::ParameterChangeRequest* c = req.mutable_change();
+    c->set_dry_run(dry_run);
+    c->set_requested_by("teleopctl set");
+    bool any_gain = false;
+    v1::Gains g = now->status().report().gains();
+    for (const auto& [path, value] : sets) {
+      if (path == "master.fixture.stiffness_N_per_m")
+        c->set_master_fixture_stiffness_n_per_m(value);
+      if (path == "slave.fixture.stiffness_N_per_m") c->set_slave_fixture_stiffness_n_per_m(value);
+      if (path.rfind("gains.", 0) == 0) {
+        any_gain = true;
+        const std::string k = path.substr(6);
+        const auto* f = g.GetDescriptor()->FindFieldByName(k);
+        g.GetReflection()->SetDouble(&g, f, value);
+      }
+    }
+    if (any_gain) *c->mutable_gains() = g;
+    const auto reply = supervisor_request(endpoint, req, timeout_ms, key, server_key);
+    if (!reply) {
+      err << "teleopctl set: no reply from the supervisor at " << endpoint << "\n";
+      return kExitNoReply;
+    }
+    if (!reply->error().empty()) {
+      err << "teleopctl set: " << reply->error() << "\n";
+      return kExitError;
+    }
+    const v1::ParameterChangeReply& r = reply->change();
+    const v1::StabilityReport& p = r.prediction();
+    out << r.reason() << "\n";
+    out << fmt::format(
+               "  prediction: {}, minimum damping ratio {:.4f} (required {:.4f}), round "
+               "trip {} samples",
+               p.verdict(), p.min_damping_ratio(), p.required_damping_ratio(),
+               p.round_trip_samples())
+        << "\n";
+    if (p.has_max_stable_slave_stiffness_n_per_m()) {
+      out << fmt::format("  slave fixture {:.0f} N/m, maximum stable {:.0f} N/m\n",
+                         p.slave_fixture_stiffness_n_per_m(),
+                         p.max_stable_slave_stiffness_n_per_m());
+    }
+    if (p.has_max_stable_master_stiffness_n_per_m()) {
+      out << fmt::format("  master fixture {:.0f} N/m, maximum stable {:.0f} N/m\n",
+                         p.master_fixture_stiffness_n_per_m(),
+                         p.max_stable_master_stiffness_n_per_m());
+    }
+    if (r.accepted() && !dry_run) {
+      out << "  change " << r.change_id() << " applies at master sequence "
+          << r.apply_at_master_sequence() << "\n";
+    }
+    return r.accepted() ? kExitOk : kExitRefused;
+  });
+}
+
+}  // namespace teleop::ctl

@@ -1,0 +1,24 @@
+// `teleopctl set PATH=VALUE...`: a guarded parameter change through the supervisor, which
+// analyses it first and applies it only if the predicted teleoperator stays stable with the
+// required damping (issue 5 "Guards parameters"). PATH: gains.kpm ... gains.kfm,
+// master.fixture.stiffness_N_per_m, slave.fixture.stiffness_N_per_m.
+#pragma once
+
+#include <optional>
+#include <ostream>
+#include <string>
+#include <vector>
+
+#include "teleop/v1/supervisor.pb.h"
+
+namespace teleop::ctl {
+
+[[nodiscard]] std::string set_usage();
+int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// One request to the supervisor; nullopt when no reply came within timeout_ms.
+[[nodiscard]] std::optional<v1::SupervisorReply> supervisor_request(
+    const std::string& endpoint, const v1::SupervisorRequest& request, int timeout_ms,
+    const std::string& secret_key_file = "", const std::string& server_key = "");
+
+}  // namespace teleop::ctl

@@ -1,0 +1,162 @@
+// The supervisor's guard and monitors (issue 5 "Proof"). Expected values come from the paper
+// (Abbott-Okamura Fig. 6: K_p 800 N/m, K_d 6 Ns/m at 500 Hz with the fixed human of 10 g,
+// 2 Ns/m, 300 N/m is stable with a 500 N/m slave wall and unstable at 6000 N/m) and from
+// physics (a free mass-damper pushed and released only ever absorbs energy).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+#include <string>
+
+#include "common/config/config_loader.hpp"
+#include "common/config/scene_loader.hpp"
+#include "common/scene/lockstep.hpp"
+#include "supervisor/daemon/monitors.hpp"
+#include "supervisor/daemon/stability_guard.hpp"
+
+namespace teleop::supervisor {
+namespace {
+
+TeleopParams fig6() {
+  TeleopParams p;
+  p.sample_rate_hz = 500.0;
+  p.master_device = {0.040, 0.41};
+  p.slave_device = {0.036, 0.49};
+  p.gains = Gains{800, 800, 6, 6, 0, 0, 0};
+  p.slave_fixture = {500.0, 0.0};
+  p.human.kind = HumanKind::kFixed;
+  p.human.fixed = {0.010, 2.0, 300.0};
+  return p;
+}
+
+TEST(StabilityGuard, RefusesTheChangeThePaperShowsUnstableAndAcceptsTheStableOne) {
+  StabilityGuard guard(fig6());
+  const LiveInputs now = guard.configured_inputs();
+  EXPECT_TRUE(guard.assess(now).acceptable());
+  ChangeRequest too_stiff;
+  too_stiff.slave_fixture_N_per_m = 6000.0;
+  const Decision refused = guard.check(now, too_stiff);
+  EXPECT_FALSE(refused.accepted);
+  EXPECT_EQ(refused.prediction.verdict, stability::Verdict::kUnstable);
+  EXPECT_NE(refused.reason.find("unstable"), std::string::npos) << refused.reason;
+  ChangeRequest fine;
+  fine.slave_fixture_N_per_m = 1000.0;
+  const Decision accepted = guard.check(now, fine);
+  EXPECT_TRUE(accepted.accepted) << accepted.reason;
+  EXPECT_GT(accepted.prediction.min_damping_ratio, 0.0);
+  // The paper's arrows end near 5500 N/m: the limit the guard reports lies between the two.
+  ASSERT_TRUE(accepted.prediction.max_slave_N_per_m.has_value());
+  EXPECT_GT(*accepted.prediction.max_slave_N_per_m, 1000.0);
+  EXPECT_LT(*accepted.prediction.max_slave_N_per_m, 6000.0);
+}
+
+TEST(StabilityGuard, ARequiredDampingRatioRefusesAStableButPoorlyDampedChange) {
+  TeleopParams p = fig6();
+  p.analysis.required_damping_ratio = 0.2;
+  StabilityGuard guard(p);
+  ChangeRequest c;
+  c.slave_fixture_N_per_m = 5000.0;  // stable (below ~5500) but barely damped
+  const Decision d = guard.check(guard.configured_inputs(), c);
+  EXPECT_FALSE(d.accepted);
+  EXPECT_NE(d.reason.find("below the required 0.2000"), std::string::npos) << d.reason;
+}
+
+TEST(StabilityGuard, AGrowingRoundTripLowersTheLimitAndTheFallbackStaysBelowIt) {
+  StabilityGuard guard(fig6());
+  LiveInputs in = guard.configured_inputs();
+  in.slave_fixture_N_per_m = 3000.0;
+  const double limit0 = *guard.assess(in).max_slave_N_per_m;
+  in.round_trip_samples = 3;
+  const double limit3 = *guard.assess(in).max_slave_N_per_m;
+  EXPECT_LT(limit3, limit0);  // delay lowers the limit (DESIGN §2)
+  const double lowered = guard.lowered_stiffness(in, true, 0.5);
+  EXPECT_LE(lowered, 0.5 * limit3 + 1e-9);
+  EXPECT_LE(lowered, 1500.0 + 1e-9);
+  ChangeRequest c;
+  c.slave_fixture_N_per_m = lowered;
+  EXPECT_TRUE(guard.check(in, c).accepted);
+}
+
+TEST(StabilityGuard, NonFiniteOrNegativeRequestsAreRefusedByName) {
+  StabilityGuard guard(fig6());
+  ChangeRequest c;
+  c.slave_fixture_N_per_m = std::nan("");
+  EXPECT_NE(guard.check(guard.configured_inputs(), c).reason.find("not finite"), std::string::npos);
+  c.slave_fixture_N_per_m = -1.0;
+  EXPECT_NE(guard.check(guard.configured_inputs(), c).reason.find(">= 0"), std::string::npos);
+}
+
+// The monitor as the supervisor runs it, over a lockstep run of a shipped scene: the slave's
+// sensed position, every 100 ms.
+struct Watch {
+  std::optional<double> first_alarm_s{};
+  double first_contact_s{-1.0};
+};
+
+Watch watch_scene(const std::string& file, double duration_s) {
+  config::LoadedConfig c =
+      config::load_config_file(std::string(TELEOP_SOURCE_DIR) + "/" + file,
+                               {"scene.duration_s=" + std::to_string(duration_s)});
+  const scene::SimulationResult r = scene::simulate(config::to_scene_setup(c));
+  const double rate = c.config.sample_rate_hz();
+  const std::size_t cols = r.columns.size();
+  const std::size_t xs = static_cast<std::size_t>(
+      std::find(r.columns.begin(), r.columns.end(), "slave_sensed_m") - r.columns.begin());
+  const double wall_m = c.config.slave().fixture().position_m();
+  // 2 encoder counts of the paper's paddle: 2 * 2 pi 0.115 / 5000.
+  const double threshold_m = 2.0 * 2.0 * std::numbers::pi * 0.115 / 5000.0;
+  OscillationMonitor monitor(1.0 / rate, 0.5, threshold_m);
+  Watch w;
+  const std::size_t rows = r.rows.size() / cols;
+  const std::size_t every = static_cast<std::size_t>(std::lround(0.1 * rate));
+  for (std::size_t k = 0; k < rows; ++k) {
+    const double x = r.rows[k * cols + xs];
+    monitor.add(x);
+    if (w.first_contact_s < 0.0 && x > wall_m) w.first_contact_s = static_cast<double>(k) / rate;
+    if (k % every == 0 && monitor.full() && monitor.check().detected && !w.first_alarm_s) {
+      w.first_alarm_s = static_cast<double>(k) / rate;
+    }
+  }
+  return w;
+}
+
+TEST(OscillationMonitor, FiresWithinASecondInTheUnstableScene) {
+  const Watch w = watch_scene("examples/scenes/paddles_slave_fixture_unstable.textproto", 5.0);
+  ASSERT_GE(w.first_contact_s, 0.0);
+  ASSERT_TRUE(w.first_alarm_s.has_value());
+  EXPECT_LE(*w.first_alarm_s - w.first_contact_s, 1.0)
+      << "contact at " << w.first_contact_s << " s, alarm at " << *w.first_alarm_s << " s";
+}
+
+TEST(OscillationMonitor, NeverFiresInTheStableSceneOverTenMinutesOfSimulatedTime) {
+  const Watch w = watch_scene("examples/scenes/paddles_slave_fixture_stable.textproto", 600.0);
+  ASSERT_GE(w.first_contact_s, 0.0);  // it does push into the wall
+  EXPECT_FALSE(w.first_alarm_s.has_value()) << "alarm at " << *w.first_alarm_s << " s";
+}
+
+TEST(PassivityObserver, AFreeMassDamperOnlyAbsorbsEnergyAndItsStoredEnergyIsExact) {
+  // m x'' = F - b x', pushed with 1 N for 0.5 s then released: the energy in through the port
+  // is the kinetic energy plus what the damper dissipated, never negative.
+  const double m = 0.04;
+  const double b = 0.41;
+  const double T = 1e-4;
+  PassivityObserver po(T);
+  double v = 0.0;
+  double dissipated = 0.0;
+  for (int k = 0; k < 20000; ++k) {
+    const double f = k < 5000 ? 1.0 : 0.0;
+    po.add(f, v);
+    dissipated += b * v * v * T;
+    v += T * (f - b * v) / m;
+  }
+  EXPECT_GE(po.min_energy_J(), 0.0);
+  EXPECT_NEAR(po.energy_J(), 0.5 * m * v * v + dissipated, 2e-3 * po.energy_J());
+  // Driven backwards by its own stored energy (an active port): the observer goes negative.
+  PassivityObserver active(T);
+  for (int k = 0; k < 1000; ++k) active.add(-1.0, 0.1);
+  EXPECT_NEAR(active.energy_J(), -1.0 * 0.1 * 1000 * T, 1e-12);
+  EXPECT_LT(active.min_energy_J(), 0.0);
+}
+
+}  // namespace
+}  // namespace teleop::supervisor
