@@ -68,7 +68,8 @@ void NodeCore::apply_retune(std::chrono::nanoseconds now, std::uint64_t master_s
     ramp_start_ = now;
     ramp_length_ = pending_.ramp;
     active_.change_id = pending_.id;
-    active_.applied_at_master_sequence = master_sequence;
+    // The agreed sequence (the slave may first see a later master state than that one).
+    active_.applied_at_master_sequence = pending_.apply_at_master_sequence;
   }
   if (!ramping_) return;
   const double length = static_cast<double>(ramp_length_.count());

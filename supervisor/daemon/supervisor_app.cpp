@@ -197,7 +197,7 @@ struct SupervisorApp::Impl {
     const Assessment& a = guard.assess(live);
     report = make_report(a, reason);
     const std::string bytes = report.SerializeAsString();
-    (void)report_pub->send(zmq::buffer("report"),
+    (void)report_pub->send(zmq::str_buffer("report"),
                            zmq::send_flags::sndmore | zmq::send_flags::dontwait);
     (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
     record("/supervisor/stability", report);
@@ -234,7 +234,7 @@ struct SupervisorApp::Impl {
     recent_alarms.push_front(a);
     while (recent_alarms.size() > 50) recent_alarms.pop_back();
     const std::string bytes = a.SerializeAsString();
-    (void)report_pub->send(zmq::buffer("alarm"),
+    (void)report_pub->send(zmq::str_buffer("alarm"),
                            zmq::send_flags::sndmore | zmq::send_flags::dontwait);
     (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
     record("/supervisor/alarms", a);
@@ -373,12 +373,18 @@ struct SupervisorApp::Impl {
     // Measured rate and round trip -> the model.
     LiveInputs next = live;
     if (master.cycle_times.size() > 500) {
-      const double span =
-          static_cast<double>(master.cycle_times.back() - master.cycle_times.front());
-      const double rate = 1e9 * static_cast<double>(master.cycle_times.size() - 1) / span;
+      // The median cycle interval: skipped (overrun) cycles do not read as a slower loop.
+      std::vector<std::int64_t> d;
+      d.reserve(master.cycle_times.size());
+      for (std::size_t i = 1; i < master.cycle_times.size(); ++i) {
+        d.push_back(master.cycle_times[i] - master.cycle_times[i - 1]);
+      }
+      std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+      const double rate = 1e9 / static_cast<double>(d[d.size() / 2]);
       // The loops run on a grid: a rate within 0.5 % of the file's is the file's.
-      if (std::abs(rate - params.sample_rate_hz) > 0.005 * params.sample_rate_hz)
+      if (std::abs(rate - params.sample_rate_hz) > 0.005 * params.sample_rate_hz) {
         next.sample_rate_hz = rate;
+      }
     }
     std::int64_t rtt = 0;
     for (NodeView* n : {&master, &slave}) {
@@ -403,6 +409,14 @@ struct SupervisorApp::Impl {
         lower_fixtures("the measured round trip grew");
     }
     // Oscillation and passivity, with escalation.
+    if (escalation_stage == 1 && !settled && now >= escalated_ns) {
+      settled = true;
+      for (NodeView* n : {&master, &slave}) {
+        n->oscillation->clear();
+        n->passivity->reset();
+        n->oscillating_since_ns = 0;
+      }
+    }
     bool misbehaving = false;
     for (NodeView* n : {&master, &slave}) {
       std::string what;
@@ -440,23 +454,31 @@ struct SupervisorApp::Impl {
         alarm(v1::Alarm::WARNING, kind, n->name, what, evidence);
       } else if (escalation_stage == 0) {
         escalation_stage = 1;
-        escalated_ns = now;
+        // The lowered stiffness is in force once the change applied (0.2 s) and ramped: only
+        // evidence from then on may escalate further.
+        escalated_ns = now + 200'000'000 + static_cast<std::int64_t>(change_ramp_ms * 1e6);
+        settled = false;
         const std::string action = lower_fixtures(what + " on the " + n->name);
         alarm(v1::Alarm::ACTION, kind, n->name, what, evidence, action);
-      } else if (escalation_stage == 1 && now - escalated_ns >= escalation_ns) {
+      } else if (escalation_stage == 1 && settled && lasting >= escalation_ns) {
         escalation_stage = 2;
         v1::NodeCommand c;
         c.set_kind(v1::NodeCommand::DISENGAGE);
-        const auto rm = command(master_setup, c);
-        const auto rs = command(slave_setup, c);
+        auto coupling = [](const NodeView& v) {
+          return v.mode == v1::ALIGNING || v.mode == v1::ENGAGED || v.mode == v1::CLUTCHED;
+        };
+        // A node that already left coupling (the peer's disengage reached it) stays armed.
+        const auto rm = coupling(master) ? command(master_setup, c) : std::nullopt;
+        const auto rs = coupling(slave) ? command(slave_setup, c) : std::nullopt;
         alarm(v1::Alarm::CRITICAL, kind, n->name, what + " persisted after lowering the fixtures",
               evidence,
               fmt::format("disengaged both nodes (master {}, slave {})",
-                          rm ? v1::NodeMode_Name(rm->mode()) : "no reply",
-                          rs ? v1::NodeMode_Name(rs->mode()) : "no reply"));
+                          rm ? v1::NodeMode_Name(rm->mode()) : v1::NodeMode_Name(master.mode),
+                          rs ? v1::NodeMode_Name(rs->mode()) : v1::NodeMode_Name(slave.mode)));
       }
     }
-    if (!misbehaving && escalation_stage != 0 && now - escalated_ns > 2 * escalation_ns) {
+    if (!misbehaving && escalation_stage != 0 && settled &&
+        now - escalated_ns > 2 * escalation_ns) {
       escalation_stage = 0;
     }
   }
@@ -611,7 +633,8 @@ struct SupervisorApp::Impl {
   std::deque<v1::Alarm> recent_alarms{};
   std::map<std::string, std::int64_t> last_alarm_ns{};
   int escalation_stage{0};
-  std::int64_t escalated_ns{0};
+  std::int64_t escalated_ns{0};  // stage 1: when the lowered stiffness is fully in force
+  bool settled{true};
 };
 
 SupervisorApp::SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options)
