@@ -601,6 +601,13 @@ struct SupervisorApp::Impl {
       if (monotonic_ns() >= next_check) {
         next_check += 100'000'000;
         check_live();
+        // Once a second the supervisor's own status goes into the session: the recorder's
+        // drops and counts, the nodes' liveness, the report in force.
+        if (++checks % 10 == 0 && opts.sink) {
+          v1::SupervisorReply status;
+          on_request(v1::SupervisorRequest{}, status);
+          record("/supervisor/status", status.status());
+        }
       }
     }
     spdlog::info("stopping");
@@ -632,6 +639,7 @@ struct SupervisorApp::Impl {
   v1::StabilityReport report{};
   std::deque<v1::Alarm> recent_alarms{};
   std::map<std::string, std::int64_t> last_alarm_ns{};
+  std::uint64_t checks{0};
   int escalation_stage{0};
   std::int64_t escalated_ns{0};  // stage 1: when the lowered stiffness is fully in force
   bool settled{true};

@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <fstream>
@@ -12,6 +13,8 @@
 #include <utility>
 
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/replay_command.hpp"
+#include "teleop/v1/node_state.pb.h"
 
 namespace teleop::ctl {
 
@@ -197,6 +200,85 @@ struct IdentifyArgs {
   return a;
 }
 
+// A session file's cycles of one node as runs: each stretch of consecutive cycles (same
+// session, sequences one apart, sample times one period apart to 1 %, not FAULT). A cycle
+// records the position and load-cell force sampled at its start and the command it wrote, held
+// until the next sample, so sample k pairs cycle k's position and force with cycle k-1's
+// command. The slave's load cell reads its push on the environment: the force on the device is
+// its negative. Stretches too short to fit or without motion (a node waiting to be armed) are
+// left out and counted.
+struct McapRuns {
+  std::vector<stability::Series> runs{};
+  std::vector<std::string> names{};
+  std::size_t short_runs{0};  // too short to fit, or motionless (disarmed): left out
+};
+
+[[nodiscard]] McapRuns read_runs_mcap(const std::string& path, bool master,
+                                      const stability::IdentifyOptions& options) {
+  const std::vector<RecordedCycle> cycles = read_recorded_cycles(path, master);
+  if (cycles.size() < 2) {
+    throw std::runtime_error(fmt::format("{}: {} cycles of the {} recorded, too few to identify",
+                                         path, cycles.size(), master ? "master" : "slave"));
+  }
+  std::vector<std::int64_t> steps;
+  for (std::size_t i = 1; i < cycles.size(); ++i) {
+    steps.push_back(cycles[i].sample_time_ns - cycles[i - 1].sample_time_ns);
+  }
+  std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
+  const double period_ns = static_cast<double>(steps[steps.size() / 2]);
+  if (!(period_ns > 0.0)) {
+    throw std::runtime_error(fmt::format("{}: the cycles' sample times do not advance", path));
+  }
+  const double sign = master ? 1.0 : -1.0;
+  McapRuns out;
+  std::size_t begin = 0;
+  auto close_run = [&](std::size_t end) {  // cycles [begin, end)
+    if (end > begin + 1) {
+      stability::Series s;
+      s.period_s = period_ns * 1e-9;
+      for (std::size_t k = begin + 1; k < end; ++k) {
+        s.position_m.push_back(cycles[k].position_m);
+        s.force_N.push_back(sign * cycles[k].force_N);
+        s.held_force_N.push_back(cycles[k - 1].command_N);
+      }
+      const auto [lo, hi] = std::minmax_element(s.position_m.begin(), s.position_m.end());
+      if (stability::usable_rows(s.position_m.size(), true, options) > 0 && *lo != *hi) {
+        out.names.push_back(fmt::format("{} {} cycles {}..{}", path, master ? "master" : "slave",
+                                        cycles[begin].sequence, cycles[end - 1].sequence));
+        out.runs.push_back(std::move(s));
+      } else {
+        ++out.short_runs;
+      }
+    } else if (end > begin) {
+      ++out.short_runs;
+    }
+    begin = end;
+  };
+  for (std::size_t i = 0; i < cycles.size(); ++i) {
+    const RecordedCycle& c = cycles[i];
+    if (c.mode == v1::FAULT) {
+      close_run(i);
+      begin = i + 1;
+      continue;
+    }
+    if (i > begin) {
+      const RecordedCycle& p = cycles[i - 1];
+      const double dt = static_cast<double>(c.sample_time_ns - p.sample_time_ns);
+      if (c.session_id != p.session_id || c.sequence != p.sequence + 1 ||
+          std::abs(dt - period_ns) > 0.01 * period_ns) {
+        close_run(i);
+      }
+    }
+  }
+  close_run(cycles.size());
+  if (out.runs.empty()) {
+    throw std::runtime_error(fmt::format(
+        "{}: no stretch of consecutive {} cycles long enough and moving to identify ({} cycles)",
+        path, master ? "master" : "slave", cycles.size()));
+  }
+  return out;
+}
+
 [[nodiscard]] std::string config_line(const std::optional<std::string>& side, double mass_kg,
                                       double damping_Ns_per_m) {
   const std::string device = fmt::format("device {{ mass_kg: {:.4g} damping_Ns_per_m: {:.4g} }}",
@@ -237,17 +319,24 @@ stability::Series read_series_csv(const std::string& path, const CsvColumns& col
 }
 
 std::string identify_usage() {
-  return "usage: teleopctl identify FILE.csv... [--device master|slave] [--passes N] [--trim N]\n"
-         "                          [--time COL | --rate HZ] [--position COL --force EXPR\n"
-         "                          [--held-force EXPR]] [--raw-force] [--json]\n\n"
+  return "usage: teleopctl identify FILE.csv|FILE.mcap... [--device master|slave] [--passes N]\n"
+         "                          [--trim N] [--time COL | --rate HZ]\n"
+         "                          [--position COL --force EXPR [--held-force EXPR]]\n"
+         "                          [--raw-force] [--json]\n\n"
          "Identifies a device's mass and damping, m x'' + b x' = F, by least squares over one\n"
          "or more recorded runs (stacked), from the position smoothed by a multiple-pass\n"
          "three-point moving average and differentiated twice, and prints the configuration\n"
          "line to paste. Drive the device with a force that varies over a band of frequencies\n"
          "(a random push); a free decay cannot separate m from b.\n\n"
+         "A session file (teleop-supervisor's recording or 'teleopctl simulate --out FILE.mcap')\n"
+         "gives the device's cycles from /master/telemetry or /slave/telemetry: position_m, the\n"
+         "load cell's force_N (on the slave the force on the device is -force_N: the cell reads\n"
+         "its push on the environment) and the command_N held over the period before each\n"
+         "sample; each stretch of consecutive cycles is a run.\n\n"
          "options:\n"
-         "  --device D       a 'teleopctl simulate --out' CSV: which paddle (default master).\n"
-         "                   master: position master_sensed_m, force human_force_N and the\n"
+         "  --device D       which paddle of a session file or of a 'teleopctl simulate --out'\n"
+         "                   CSV (default master). CSV master: position master_sensed_m, force "
+         "human_force_N and the\n"
          "                   held actuator force -master_force_N; slave: slave_sensed_m,\n"
          "                   -environment_force_N and slave_force_N\n"
          "  --position COL   any CSV with a header: the position column, m\n"
@@ -257,7 +346,7 @@ std::string identify_usage() {
          "                   command), centred on the row before it is added\n"
          "  --time COL       sample times, uniform (default time_s)\n"
          "  --rate HZ        the sample rate instead of a time column\n"
-         "  --passes N       moving-average passes per smoothing stage (default 4; more at\n"
+         "  --passes N       moving-average passes per smoothing stage (default 8; more at\n"
          "                   higher sample rates)\n"
          "  --trim N         further samples dropped at each end of each run (default 0)\n"
          "  --raw-force      do not smooth the force like the regressors\n"
@@ -281,18 +370,38 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
   }
   return run_guarded("identify", err, [&] {
     std::vector<stability::Series> runs;
-    for (const std::string& file : a.files) runs.push_back(read_series_csv(file, a.columns));
+    std::vector<std::string> run_names;
+    std::size_t short_runs = 0;
+    for (const std::string& file : a.files) {
+      if (is_mcap_file(file)) {
+        if (a.custom_columns || a.columns.rate_hz > 0.0 || a.columns.time != "time_s") {
+          throw std::runtime_error(fmt::format(
+              "{}: a session file: --position, --force, --held-force, --time and --rate are "
+              "for CSV files",
+              file));
+        }
+        McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options);
+        for (std::size_t i = 0; i < m.runs.size(); ++i) {
+          runs.push_back(std::move(m.runs[i]));
+          run_names.push_back(m.names[i]);
+        }
+        short_runs += m.short_runs;
+      } else {
+        runs.push_back(read_series_csv(file, a.columns));
+        run_names.push_back(file);
+      }
+    }
     stability::IdentifyResult r;
     try {
       r = stability::identify(runs, a.options);
     } catch (const std::invalid_argument& e) {
       // Name the file behind "run N".
       std::string message = e.what();
-      for (std::size_t i = a.files.size(); i-- > 0;) {
+      for (std::size_t i = run_names.size(); i-- > 0;) {
         const std::string tag = fmt::format("run {}:", i + 1);
         const std::size_t at = message.find(tag);
         if (at != std::string::npos) {
-          message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, a.files[i]));
+          message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, run_names[i]));
           break;
         }
       }
@@ -314,6 +423,12 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
           "contact, a missing force column, too little excitation?)",
           r.r_squared, kPoorFit));
     }
+    if (short_runs > 0) {
+      warnings.push_back(fmt::format(
+          "{} stretch{} of consecutive cycles too short to fit or motionless left out (sequence "
+          "gaps, restarts, overruns or faults split a session)",
+          short_runs, short_runs == 1 ? "" : "es"));
+    }
     const std::string line = config_line(side, r.mass_kg, r.damping_Ns_per_m);
     if (a.json) {
       json j = {{"device", side ? json(*side) : json(nullptr)},
@@ -330,7 +445,7 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
                 {"warnings", warnings},
                 {"config", valid ? json(line) : json(nullptr)}};
       for (std::size_t i = 0; i < r.runs.size(); ++i) {
-        j["runs"].push_back({{"file", a.files[i]},
+        j["runs"].push_back({{"file", run_names[i]},
                              {"samples", r.runs[i].samples},
                              {"r_squared", r.runs[i].r_squared}});
       }
@@ -347,7 +462,7 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
       out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
       if (r.runs.size() > 1) {
         for (std::size_t i = 0; i < r.runs.size(); ++i) {
-          out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, a.files[i],
+          out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, run_names[i],
                              r.runs[i].samples, r.runs[i].r_squared);
         }
       }

@@ -1,5 +1,5 @@
-// teleopctl: the operator's console: `analyze` and `simulate`; launch, console and replay
-// arrive with the runtime.
+// teleopctl: the operator's console: analyze, simulate, launch, node, keygen, set, identify,
+// replay.
 #include <iostream>
 #include <string>
 #include <vector>
@@ -8,6 +8,7 @@
 #include "supervisor/teleopctl/identify_command.hpp"
 #include "supervisor/teleopctl/keygen_command.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
+#include "supervisor/teleopctl/replay_command.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
 #include "supervisor/teleopctl/simulate_command.hpp"
 
@@ -23,6 +24,7 @@ void usage(std::ostream& os) {
         "  keygen     a CURVE key pair for a node or client (see 'teleopctl keygen --help')\n"
         "  set        a guarded parameter change through the supervisor ('teleopctl set --help')\n"
         "  identify   a device's mass and damping by least squares ('teleopctl identify --help')\n"
+        "  replay     a recorded session: summary, CSV, re-publish, resimulate ('replay --help')\n"
         "  help       this text\n";
 }
 
@@ -73,7 +75,8 @@ int main(int argc, char** argv) {
         Simple{"node", teleop::ctl::node_usage, teleop::ctl::run_node_command},
         Simple{"keygen", teleop::ctl::keygen_usage, teleop::ctl::run_keygen},
         Simple{"set", teleop::ctl::set_usage, teleop::ctl::run_set},
-        Simple{"identify", teleop::ctl::identify_usage, teleop::ctl::run_identify}}) {
+        Simple{"identify", teleop::ctl::identify_usage, teleop::ctl::run_identify},
+        Simple{"replay", teleop::ctl::replay_usage, teleop::ctl::run_replay}}) {
     if (args[0] != c.name) continue;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {

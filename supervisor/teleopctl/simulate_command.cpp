@@ -5,14 +5,22 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <ostream>
 
 #include "common/config/scene_loader.hpp"
+#include "common/control/velocity_estimator.hpp"
+#include "common/device/sim_device.hpp"
+#include "common/record/mcap_writer.hpp"
+#include "common/record/proto_schema.hpp"
 #include "common/scene/lockstep.hpp"
 #include "common/stability/analyzer.hpp"
+#include "supervisor/daemon/stability_guard.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
+#include "teleop/v1/supervisor.pb.h"
+#include "teleop/v1/telemetry.pb.h"
 
 namespace teleop::ctl {
 
@@ -40,6 +48,240 @@ void write_csv(const std::string& path, const scene::SimulationResult& r) {
     f << "\n";
   }
   if (!f) throw std::runtime_error(fmt::format("cannot write '{}'", path));
+}
+
+// --- the session file (--out FILE.mcap) -------------------------------------------------------
+
+// Cycles per Telemetry message: a live node's 50 messages/s at 1 kHz.
+constexpr std::size_t kCyclesPerMessage = 20;
+
+[[nodiscard]] bool is_mcap_path(const std::string& path) {
+  return path.size() >= 5 && path.compare(path.size() - 5, 5, ".mcap") == 0;
+}
+
+[[nodiscard]] v1::Gains gains_proto(const Gains& g) {
+  v1::Gains p;
+  p.set_kpm(g.kpm);
+  p.set_kps(g.kps);
+  p.set_kdm(g.kdm);
+  p.set_kds(g.kds);
+  p.set_kvm(g.kvm);
+  p.set_kvs(g.kvs);
+  p.set_kfm(g.kfm);
+  return p;
+}
+
+// What the supervisor would publish at the start of this session (supervisor_app.cpp's
+// make_report): the analyser on the configured loop with the scene's round trip, which is the
+// one the lockstep simulator plays.
+[[nodiscard]] v1::StabilityReport start_report(const TeleopParams& params) {
+  supervisor::StabilityGuard guard(params);
+  const supervisor::Assessment a = guard.assess(guard.configured_inputs());
+  v1::StabilityReport r;
+  r.set_time_ns(0);
+  r.set_master_sequence(0);
+  r.set_verdict(std::string(stability::to_string(a.verdict)));
+  r.set_min_damping_ratio(a.min_damping_ratio);
+  r.set_required_damping_ratio(a.required_damping_ratio);
+  if (a.worst_human) {
+    r.mutable_worst_human()->set_mass_kg(a.worst_human->impedance.mass_kg);
+    r.mutable_worst_human()->set_damping_ns_per_m(a.worst_human->impedance.damping_Ns_per_m);
+    r.mutable_worst_human()->set_stiffness_n_per_m(a.worst_human->impedance.stiffness_N_per_m);
+    r.set_worst_human_force_n(a.worst_human->force_N);
+  }
+  r.set_master_fixture_stiffness_n_per_m(a.inputs.master_fixture_N_per_m);
+  r.set_slave_fixture_stiffness_n_per_m(a.inputs.slave_fixture_N_per_m);
+  if (a.max_master_N_per_m) r.set_max_stable_master_stiffness_n_per_m(*a.max_master_N_per_m);
+  if (a.max_slave_N_per_m) r.set_max_stable_slave_stiffness_n_per_m(*a.max_slave_N_per_m);
+  if (const auto m = a.master_margin()) r.set_master_margin(*m);
+  if (const auto m = a.slave_margin()) r.set_slave_margin(*m);
+  r.set_round_trip_samples(a.inputs.round_trip_samples);
+  r.set_measured_round_trip_ns(static_cast<std::int64_t>(
+      std::llround(1e9 * a.inputs.round_trip_samples / params.sample_rate_hz)));
+  r.set_sample_rate_hz(a.inputs.sample_rate_hz);
+  *r.mutable_gains() = gains_proto(a.inputs.gains);
+  r.set_reason("start (teleopctl simulate)");
+  r.set_parameter_change_id(0);
+  return r;
+}
+
+// The true force on each device's load cell at time 0 (the simulation's rows start after the
+// first period).
+[[nodiscard]] double initial_force_N(device::SimDeviceConfig cfg, std::chrono::nanoseconds period,
+                                     double position_m) {
+  cfg.period = period;
+  cfg.initial_position_m = position_m;
+  device::SimDevice dev(cfg);
+  if (!dev.configure().ok() || !dev.activate().ok()) return 0.0;
+  const device::SimTruth t = dev.truth();
+  return cfg.human ? t.output.human_force_N : t.output.environment_force_N;
+}
+
+// The lockstep rows as a live session would have recorded them (session_recorder.cpp's
+// topics and types): /config, /supervisor/stability at log time 0, then /master/telemetry and
+// /slave/telemetry, kCyclesPerMessage cycles per message, logged at the end of the last cycle's
+// period (simulated time).
+//
+// Cycle k (sequence k + 1, sample time k T) is what each node's law saw at its sample k: the
+// row's *_sensed_m; the force on its load cell then, which the row before carries (the true
+// force: no load-cell noise; at k = 0 the initial state's); the velocity its law estimates
+// from the sensed positions; the command it wrote, held over [kT, (k+1)T) (the master's
+// actuator is driven by -F_am); the peer state of that sample: the slave's at once, the
+// master's round_trip_delay_samples late.
+void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
+                        const scene::SceneSetup& setup, const scene::SimulationResult& r) {
+  const std::size_t n_cols = r.columns.size();
+  auto col = [&](const char* name) {
+    for (std::size_t i = 0; i < n_cols; ++i) {
+      if (r.columns[i] == name) return i;
+    }
+    throw std::logic_error(fmt::format("simulation rows have no column '{}'", name));
+  };
+  const std::size_t c_xm = col("master_sensed_m");
+  const std::size_t c_xs = col("slave_sensed_m");
+  const std::size_t c_fam = col("master_force_N");
+  const std::size_t c_fas = col("slave_force_N");
+  const std::size_t c_fh = col("human_force_N");
+  const std::size_t c_fe = col("environment_force_N");
+  const std::size_t rows = n_cols == 0 ? 0 : r.rows.size() / n_cols;
+  auto at = [&](std::size_t row, std::size_t c) { return r.rows[row * n_cols + c]; };
+
+  const TeleopParams& p = setup.teleop;
+  const double rate = p.sample_rate_hz;
+  const std::int64_t period_ns = std::llround(1e9 / rate);
+  const std::chrono::nanoseconds period{period_ns};
+  const std::size_t delay = static_cast<std::size_t>(p.round_trip_delay_samples);
+  // The lockstep simulator's start (lockstep.cpp): at rest, or at the static equilibrium.
+  double master0 = setup.master.initial_position_m;
+  double slave0 = setup.slave.initial_position_m;
+  if (setup.equilibrium_perturbation_m) {
+    const scene::Equilibrium eq = scene::static_equilibrium(p, setup.equilibrium_push_N);
+    master0 = eq.master_m;
+    slave0 = eq.slave_m + *setup.equilibrium_perturbation_m;
+  }
+  const double master_f0 = initial_force_N(setup.master, period, master0);
+  const double slave_f0 = initial_force_N(setup.slave, period, slave0);
+  const double period_s = 1.0 / rate;
+  control::VelocityEstimator master_velocity(period_s, setup.law.velocity_cutoff_hz);
+  control::VelocityEstimator slave_velocity(period_s, setup.law.velocity_cutoff_hz);
+  master_velocity.reset(master0);
+  slave_velocity.reset(slave0);
+
+  record::WriterOptions options;
+  options.library = "teleop-record (teleopctl simulate)";
+  // Offline: chunks by size only, so the same scene gives the same bytes.
+  options.max_chunk_age = std::chrono::nanoseconds::max();
+  record::McapWriter writer(path, options);
+  // One schema per type, as the live recorder keeps them.
+  std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas;
+  auto channel = [&](const google::protobuf::Descriptor* d, const char* topic) {
+    auto it = schemas.find(d);
+    if (it == schemas.end()) {
+      it = schemas.emplace(d, writer.add_schema(record::protobuf_schema(d))).first;
+    }
+    return writer.add_channel(record::protobuf_channel(it->second, topic));
+  };
+  const std::uint16_t config_ch = channel(v1::SystemConfig::descriptor(), "/config");
+  const std::uint16_t report_ch =
+      channel(v1::StabilityReport::descriptor(), "/supervisor/stability");
+  const std::uint16_t master_ch = channel(v1::Telemetry::descriptor(), "/master/telemetry");
+  const std::uint16_t slave_ch = channel(v1::Telemetry::descriptor(), "/slave/telemetry");
+  auto write = [&](std::uint16_t ch, std::int64_t log_time_ns, const std::string& bytes) {
+    if (!writer.write(ch, static_cast<std::uint64_t>(log_time_ns), bytes)) {
+      throw std::runtime_error(writer.error());
+    }
+  };
+  write(config_ch, 0, cfg.config.SerializeAsString());
+  write(report_ch, 0, start_report(p).SerializeAsString());
+
+  const std::uint64_t seed = setup.seed;
+  const std::uint64_t master_session = 0x5349'4D00'0000'0000ULL ^ (2 * seed + 1);
+  const std::uint64_t slave_session = 0x5349'4D00'0000'0000ULL ^ (2 * seed + 2);
+  const std::int64_t round_trip_ns = static_cast<std::int64_t>(delay) * period_ns;
+  auto start = [&](v1::Telemetry& t, bool master) {
+    t.Clear();
+    t.set_session_id(master ? master_session : slave_session);
+    t.set_role(master ? v1::MASTER : v1::SLAVE);
+    t.set_mode(v1::ENGAGED);
+    t.set_mode_reason("simulated (teleopctl simulate, lockstep)");
+    t.set_device("sim");
+    v1::ActiveParameters* a = t.mutable_active();
+    *a->mutable_gains() = gains_proto(p.gains);
+    a->set_master_fixture_stiffness_n_per_m(p.master_fixture.stiffness_N_per_m);
+    a->set_slave_fixture_stiffness_n_per_m(p.slave_fixture.stiffness_N_per_m);
+    a->set_ramp_progress(1.0);
+  };
+  auto finish = [&](v1::Telemetry& t, bool master, std::size_t cycles_so_far, std::int64_t now) {
+    t.set_sent_time_ns(now);
+    v1::LoopStats* l = t.mutable_loop();
+    l->set_period_s(period_s);
+    l->set_cycles(cycles_so_far);
+    v1::LinkStats* k = t.mutable_link();
+    k->set_accepted(master ? cycles_so_far : (cycles_so_far > delay ? cycles_so_far - delay : 0));
+    k->set_round_trip_ns(round_trip_ns);
+    k->set_round_trip_p50_ns(round_trip_ns);
+    k->set_round_trip_p99_ns(round_trip_ns);
+    k->set_round_trip_samples(static_cast<std::int32_t>(delay));
+    k->set_one_way_latency_ns(round_trip_ns / 2);
+    k->set_peer_session_id(master ? slave_session : master_session);
+    k->set_peer_age_ns(master ? 0 : round_trip_ns);
+  };
+  v1::Telemetry mt;
+  v1::Telemetry st;
+  for (std::size_t k = 0; k < rows; ++k) {
+    if (k % kCyclesPerMessage == 0) {
+      start(mt, true);
+      start(st, false);
+    }
+    const std::uint64_t seq = k + 1;
+    const std::int64_t time_ns = static_cast<std::int64_t>(k) * period_ns;
+    const double xm = at(k, c_xm);
+    const double xs = at(k, c_xs);
+    // The slave's view of the master: its state `delay` samples ago (the lockstep's in-flight
+    // buffer starts with the master's initial position).
+    const bool have_master = k >= delay;
+    const double xm_seen = have_master ? at(k - delay, c_xm) : master0;
+    const std::uint64_t master_seq_seen = have_master ? k - delay + 1 : 0;
+
+    v1::CycleRecord* c = mt.add_cycles();
+    c->set_sequence(seq);
+    c->set_sample_time_ns(time_ns);
+    c->set_mode(v1::ENGAGED);
+    c->set_position_m(xm);
+    c->set_velocity_m_per_s(master_velocity.step(xm));
+    c->set_force_n(k == 0 ? master_f0 : at(k - 1, c_fh));
+    c->set_command_n(0.0 - at(k, c_fam));  // 0.0 -: no negative zero in the CSV
+    c->set_peer_sequence(seq);
+    c->set_peer_position_m(xs);
+    c->set_peer_age_ns(0);
+    c->set_coupling_weight(1.0);
+    c->set_round_trip_ns(round_trip_ns);
+    c->set_master_sequence(seq);
+
+    c = st.add_cycles();
+    c->set_sequence(seq);
+    c->set_sample_time_ns(time_ns);
+    c->set_mode(v1::ENGAGED);
+    c->set_position_m(xs);
+    c->set_velocity_m_per_s(slave_velocity.step(xs));
+    c->set_force_n(k == 0 ? slave_f0 : at(k - 1, c_fe));
+    c->set_command_n(at(k, c_fas));
+    c->set_peer_sequence(master_seq_seen);
+    c->set_peer_position_m(xm_seen);
+    c->set_peer_age_ns(round_trip_ns);
+    c->set_coupling_weight(1.0);
+    c->set_round_trip_ns(round_trip_ns);
+    c->set_master_sequence(master_seq_seen);
+
+    if ((k + 1) % kCyclesPerMessage == 0 || k + 1 == rows) {
+      const std::int64_t now = time_ns + period_ns;
+      finish(mt, true, k + 1, now);
+      finish(st, false, k + 1, now);
+      write(master_ch, now, mt.SerializeAsString());
+      write(slave_ch, now, st.SerializeAsString());
+    }
+  }
+  if (!writer.close()) throw std::runtime_error(writer.error());
 }
 
 void write_plot(const std::string& path, const scene::SimulationResult& r) {
@@ -79,7 +321,10 @@ void write_plot(const std::string& path, const scene::SimulationResult& r) {
 
 std::string simulate_usage() {
   return "usage: teleopctl simulate SCENE [--duration S] [--seed N] [--set PATH=VALUE]...\n"
-         "                          [--out FILE.csv] [--plot FILE.svg] [--json]\n";
+         "                          [--out FILE.csv|FILE.mcap] [--plot FILE.svg] [--json]\n\n"
+         "--out FILE.csv writes the time series (SI units, named columns); --out FILE.mcap a\n"
+         "session file as teleop-supervisor records a live run (/config, /master/telemetry and\n"
+         "/slave/telemetry with every cycle, /supervisor/stability), for 'teleopctl replay'.\n";
 }
 
 SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
@@ -181,7 +426,24 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
       out << fmt::format("  parasitic force peak {:.4g} N\n", s.parasitic_force_peak_N);
       if (s.fault) out << "  a control law latched a fault\n";
     }
-    if (o.out_path) write_csv(*o.out_path, r);
+    if (o.out_path && is_mcap_path(*o.out_path)) {
+      if (setup.force_device) {
+        throw std::runtime_error(fmt::format(
+            "{}: a session file needs a bilateral scene (master and slave); this is a force "
+            "device scene: write --out FILE.csv",
+            *o.out_path));
+      }
+      if (setup.output_rate_hz > 0.0 && setup.output_rate_hz < setup.teleop.sample_rate_hz) {
+        // The session carries every cycle: the same run at full rate (deterministic).
+        scene::SceneSetup full = setup;
+        full.output_rate_hz = 0.0;
+        write_session_mcap(*o.out_path, cfg, full, scene::simulate(full));
+      } else {
+        write_session_mcap(*o.out_path, cfg, setup, r);
+      }
+    } else if (o.out_path) {
+      write_csv(*o.out_path, r);
+    }
     if (o.plot_path) write_plot(*o.plot_path, r);
     if (s.fault) return 5;
     return s.oscillation.detected || s.master_oscillation.detected ? 3 : 0;

@@ -1,0 +1,730 @@
+// `teleopctl replay` and `teleopctl identify` on session files written by `teleopctl simulate
+// --out FILE.mcap` (issue 5 "Replay and identification"): the real binary, as a user runs it.
+// Expected values come from independent paths: the scene's own numbers, `simulate`'s CSV and
+// JSON, and the MCAP reader on the original file.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <spawn.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <optional>
+#include <random>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+#include <zmq.hpp>
+
+#include "common/record/mcap_reader.hpp"
+#include "teleop/v1/supervisor.pb.h"
+#include "teleop/v1/telemetry.pb.h"
+
+extern char** environ;
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+class TempDir {
+ public:
+  TempDir() {
+    std::string pattern = ::testing::TempDir() + "test_replay_XXXXXX";
+    if (mkdtemp(pattern.data()) == nullptr) throw std::runtime_error("mkdtemp failed");
+    path_ = pattern;
+  }
+  ~TempDir() {
+    std::error_code ec;
+    fs::remove_all(path_, ec);
+  }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
+
+ private:
+  fs::path path_;
+};
+
+std::string read_text(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
+}
+
+struct CliResult {
+  int exit_code{-1};
+  std::string out{};
+  std::string err{};
+};
+
+// Runs teleopctl with `args` (no spaces inside an argument), stdout and stderr kept apart.
+CliResult run(const TempDir& dir, const std::string& args) {
+  const std::string err_file = dir.file("stderr.txt");
+  const std::string cmd = std::string(TELEOPCTL_PATH) + " " + args + " 2>" + err_file;
+  CliResult r;
+  FILE* pipe = popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 65536> buf{};
+  std::size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  r.err = read_text(err_file);
+  return r;
+}
+
+std::string scene(const char* name) {
+  return std::string(TELEOP_SOURCE_DIR) + "/examples/scenes/" + name;
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) lines.push_back(line);
+  }
+  return lines;
+}
+
+std::vector<std::string> split(const std::string& s, char sep) {
+  std::vector<std::string> parts;
+  std::string cur;
+  for (const char c : s) {
+    if (c == sep) {
+      parts.push_back(cur);
+      cur.clear();
+    } else {
+      cur.push_back(c);
+    }
+  }
+  parts.push_back(cur);
+  return parts;
+}
+
+// A CSV as named columns of strings (numbers parsed where needed).
+struct Csv {
+  std::vector<std::string> header{};
+  std::vector<std::vector<std::string>> rows{};
+  [[nodiscard]] std::size_t col(const std::string& name) const {
+    for (std::size_t i = 0; i < header.size(); ++i) {
+      if (header[i] == name) return i;
+    }
+    ADD_FAILURE() << "no column " << name;
+    return 0;
+  }
+  [[nodiscard]] double num(std::size_t row, const std::string& name) const {
+    return std::stod(rows[row][col(name)]);
+  }
+};
+
+Csv parse_csv(const std::string& text) {
+  Csv csv;
+  const std::vector<std::string> lines = lines_of(text);
+  if (lines.empty()) return csv;
+  csv.header = split(lines[0], ',');
+  for (std::size_t i = 1; i < lines.size(); ++i) csv.rows.push_back(split(lines[i], ','));
+  return csv;
+}
+
+// The sample rate written in a scene file, read from its text (not through the loader).
+double scene_rate_hz(const std::string& path) {
+  std::smatch m;
+  const std::string text = read_text(path);
+  const std::regex re(R"((^|\n)sample_rate_hz:\s*([0-9.]+))");
+  EXPECT_TRUE(std::regex_search(text, m, re)) << path;
+  return std::stod(m[2].str());
+}
+
+std::string simulate_mcap(const TempDir& dir, const std::string& scene_path,
+                          const std::string& extra, const std::string& name) {
+  const std::string out = dir.file(name);
+  const CliResult r = run(dir, "simulate " + scene_path + " " + extra + " --out " + out);
+  EXPECT_TRUE(r.exit_code == 0 || r.exit_code == 3) << r.out << r.err;
+  EXPECT_TRUE(fs::exists(out)) << r.err;
+  return out;
+}
+
+// --- summary, CSV, print ---------------------------------------------------------------------
+
+TEST(Replay, SummaryCountsWhatSimulateWrote) {
+  const TempDir dir;
+  const std::string path = scene("paddles_master_fixture.textproto");
+  const double duration_s = 3.0;
+  const double rate = scene_rate_hz(path);
+  const std::string file = simulate_mcap(dir, path, "--duration 3", "s.mcap");
+  const auto cycles = static_cast<std::uint64_t>(std::llround(duration_s * rate));
+  const std::uint64_t per_side = (cycles + 19) / 20;  // 20 cycles per Telemetry message
+
+  const CliResult r = run(dir, "replay " + file + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_NEAR(j["duration_s"].get<double>(), duration_s, 1e-9);
+  EXPECT_EQ(j["messages"].get<std::uint64_t>(), 2 * per_side + 2);
+  std::map<std::string, std::pair<std::uint64_t, std::string>> channels;
+  for (const json& c : j["channels"]) {
+    channels[c["topic"].get<std::string>()] = {c["messages"].get<std::uint64_t>(),
+                                               c["schema"].get<std::string>()};
+  }
+  using P = std::pair<std::uint64_t, std::string>;
+  EXPECT_EQ(channels["/config"], (P{1, "teleop.v1.SystemConfig"}));
+  EXPECT_EQ(channels["/supervisor/stability"], (P{1, "teleop.v1.StabilityReport"}));
+  EXPECT_EQ(channels["/master/telemetry"], (P{per_side, "teleop.v1.Telemetry"}));
+  EXPECT_EQ(channels["/slave/telemetry"], (P{per_side, "teleop.v1.Telemetry"}));
+  for (const char* side : {"master", "slave"}) {
+    const json& n = j["nodes"][side];
+    EXPECT_EQ(n["cycles"].get<std::uint64_t>(), cycles) << side;
+    EXPECT_EQ(n["cycles_missing"].get<std::uint64_t>(), 0U) << side;
+    EXPECT_EQ(n["first_sequence"].get<std::uint64_t>(), 1U) << side;
+    EXPECT_EQ(n["last_sequence"].get<std::uint64_t>(), cycles) << side;
+    EXPECT_EQ(n["modes"]["ENGAGED"].get<std::uint64_t>(), cycles) << side;
+  }
+  EXPECT_EQ(j["alarms"]["count"].get<std::size_t>(), 0U);
+  EXPECT_TRUE(j["parameter_changes"].empty());
+  EXPECT_TRUE(j["recorder_drops"].is_null());
+  ASSERT_EQ(j["stability"].size(), 1U);
+
+  // The text form says the same.
+  const CliResult text = run(dir, "replay " + file);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find(std::to_string(cycles) + " cycles (sequences 1.." +
+                          std::to_string(cycles) + "), 0 missing"),
+            std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("recorder drops: unknown"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("stability: 1 report"), std::string::npos) << text.out;
+}
+
+TEST(Replay, CsvRowsAreTheCyclesAndEqualTheSimulateCsv) {
+  const TempDir dir;
+  const std::string path = scene("paddles_master_fixture.textproto");
+  const double rate = scene_rate_hz(path);
+  // One sample of round trip: the slave sees the master's state one cycle late.
+  const std::string extra = "--duration 2 --set round_trip_delay_samples=1";
+  const std::string file = simulate_mcap(dir, path, extra, "s.mcap");
+  const std::string sim_csv_path = dir.file("s.csv");
+  ASSERT_EQ(run(dir, "simulate " + path + " " + extra + " --out " + sim_csv_path).exit_code, 0);
+  const Csv sim = parse_csv(read_text(sim_csv_path));
+  const std::size_t n = sim.rows.size();
+  ASSERT_EQ(n, static_cast<std::size_t>(std::llround(2.0 * rate)));
+
+  const CliResult r = run(dir, "replay " + file + " --csv");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Csv rep = parse_csv(r.out);
+  ASSERT_EQ(rep.rows.size(), 2 * n);
+  // --out writes the same bytes to a file.
+  const std::string out_csv = dir.file("r.csv");
+  ASSERT_EQ(run(dir, "replay " + file + " --csv --out " + out_csv).exit_code, 0);
+  EXPECT_EQ(read_text(out_csv), r.out);
+
+  // Row k of the simulation is written after its physics step: its *_sensed_m are what the
+  // laws read at sample k, its *_force_N the laws' outputs at k, and its human and environment
+  // forces the true forces at the step's end, which the load cells read at sample k + 1.
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t m = k;      // master rows first
+    const std::size_t s = n + k;  // then the slave's
+    ASSERT_EQ(rep.rows[m][rep.col("node")], "master");
+    ASSERT_EQ(rep.rows[s][rep.col("node")], "slave");
+    EXPECT_EQ(rep.num(m, "sequence"), static_cast<double>(k + 1));
+    EXPECT_EQ(rep.num(s, "sequence"), static_cast<double>(k + 1));
+    EXPECT_EQ(rep.rows[m][rep.col("mode")], "ENGAGED");
+    EXPECT_NEAR(rep.num(m, "time_s"), sim.num(k, "time_s") - 1.0 / rate, 1e-9) << k;
+    EXPECT_NEAR(rep.num(s, "time_s"), sim.num(k, "time_s") - 1.0 / rate, 1e-9) << k;
+    EXPECT_EQ(rep.num(m, "position_m"), sim.num(k, "master_sensed_m")) << k;
+    EXPECT_EQ(rep.num(s, "position_m"), sim.num(k, "slave_sensed_m")) << k;
+    // The master's actuator is driven by -F_am (DESIGN §2); the slave's by F_as.
+    EXPECT_EQ(rep.num(m, "command_N"), -sim.num(k, "master_force_N")) << k;
+    EXPECT_EQ(rep.num(s, "command_N"), sim.num(k, "slave_force_N")) << k;
+    EXPECT_EQ(rep.num(m, "peer_position_m"), sim.num(k, "slave_sensed_m")) << k;
+    if (k >= 1) {
+      EXPECT_EQ(rep.num(m, "force_N"), sim.num(k - 1, "human_force_N")) << k;
+      EXPECT_EQ(rep.num(s, "force_N"), sim.num(k - 1, "environment_force_N")) << k;
+      EXPECT_EQ(rep.num(s, "peer_position_m"), sim.num(k - 1, "master_sensed_m")) << k;
+      EXPECT_EQ(rep.num(s, "peer_sequence"), static_cast<double>(k)) << k;
+    }
+    EXPECT_EQ(rep.num(m, "round_trip_ns"), 1e9 / rate) << k;
+  }
+}
+
+TEST(Replay, PrintsTheStabilityReportTheAnalyserGives) {
+  const TempDir dir;
+  const std::string path = scene("paddles_slave_fixture_unstable.textproto");
+  const std::string file = simulate_mcap(dir, path, "--duration 1", "u.mcap");
+  const CliResult sim = run(dir, "simulate " + path + " --duration 1 --json");
+  const json predicted = json::parse(sim.out)["predicted"];
+
+  const CliResult r = run(dir, "replay " + file + " --print /supervisor/stability --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const std::vector<std::string> lines = lines_of(r.out);
+  ASSERT_EQ(lines.size(), 1U) << r.out;
+  const json j = json::parse(lines[0]);
+  EXPECT_EQ(j["log_time_ns"].get<std::uint64_t>(), 0U);
+  EXPECT_EQ(j["message"]["verdict"], predicted["verdict"]);
+  EXPECT_EQ(j["message"]["verdict"], "unstable");
+  EXPECT_NEAR(j["message"]["min_damping_ratio"].get<double>(),
+              predicted["min_damping_ratio"].get<double>(), 1e-12);
+  EXPECT_EQ(j["message"]["slave_fixture_stiffness_N_per_m"].get<double>(), 4000.0);
+
+  const CliResult text = run(dir, "replay " + file + " --print /supervisor/stability");
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  ASSERT_EQ(lines_of(text.out).size(), 1U);
+  EXPECT_EQ(text.out.rfind("0.000000000 { verdict: \"unstable\"", 0), 0U) << text.out;
+
+  // Every telemetry message prints, one line each.
+  const CliResult tel = run(dir, "replay " + file + " --print /slave/telemetry --json");
+  ASSERT_EQ(tel.exit_code, 0) << tel.err;
+  EXPECT_EQ(lines_of(tel.out).size(), static_cast<std::size_t>(500 / 20));
+}
+
+TEST(Replay, ErrorsNameTheFileAndWhatIsWrong) {
+  const TempDir dir;
+  const std::string file =
+      simulate_mcap(dir, scene("paddles_slave_fixture_stable.textproto"), "--duration 1", "s.mcap");
+  CliResult r = run(dir, "replay " + file + " --print /nope");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(file + ": no channel '/nope' (channels: /config,"), std::string::npos)
+      << r.err;
+
+  const std::string csv = dir.file("x.csv");
+  std::ofstream(csv) << "time_s,x\n0,1\n";
+  r = run(dir, "replay " + csv);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(csv + ": offset 0: not an MCAP file"), std::string::npos) << r.err;
+
+  const std::string cut = dir.file("cut.mcap");
+  fs::copy_file(file, cut);
+  fs::resize_file(cut, fs::file_size(file) / 2);
+  r = run(dir, "replay " + cut);
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find(cut + ": offset"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("--recover"), std::string::npos) << r.err;
+
+  r = run(dir, "replay " + dir.file("missing.mcap"));
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("missing.mcap: no such file"), std::string::npos) << r.err;
+
+  EXPECT_EQ(run(dir, "replay").exit_code, 2);
+  EXPECT_EQ(run(dir, "replay " + file + " --speed 0").exit_code, 2);
+  EXPECT_EQ(run(dir, "replay " + file + " --csv --resimulate").exit_code, 2);
+  EXPECT_EQ(run(dir, "replay " + file + " --bogus").exit_code, 2);
+  const CliResult help = run(dir, "replay --help");
+  EXPECT_EQ(help.exit_code, 0);
+  EXPECT_EQ(help.out.rfind("usage: teleopctl replay", 0), 0U) << help.out;
+}
+
+// --- recovery --------------------------------------------------------------------------------
+
+TEST(Replay, RecoverKeepsExactlyTheCompleteChunks) {
+  const TempDir dir;
+  // 20 s at 1 kHz: several 256 KiB chunks.
+  const std::string file =
+      simulate_mcap(dir, scene("paddles_master_fixture.textproto"), "--duration 20", "long.mcap");
+  const teleop::record::McapReader original = teleop::record::McapReader::open(file);
+  const std::vector<teleop::record::ChunkIndex>& chunks = original.chunk_indexes();
+  ASSERT_GE(chunks.size(), 4U);
+  // Cut in the middle of the third chunk.
+  const std::uint64_t cut_at = chunks[2].chunk_start_offset + chunks[2].chunk_length / 2;
+  const std::string cut = dir.file("cut.mcap");
+  fs::copy_file(file, cut);
+  fs::resize_file(cut, cut_at);
+
+  struct Kept {
+    std::string topic;
+    std::uint64_t log_time_ns;
+    std::string data;
+    bool operator==(const Kept&) const = default;
+  };
+  std::vector<Kept> expected;
+  std::uint64_t expected_chunks = 0;
+  for (const auto& c : chunks) {
+    if (c.chunk_start_offset + c.chunk_length <= cut_at) ++expected_chunks;
+  }
+  original.for_each_message(teleop::record::Order::kFile, [&](const auto& m) {
+    for (const auto& c : chunks) {
+      if (m.record_offset == c.chunk_start_offset &&
+          c.chunk_start_offset + c.chunk_length <= cut_at) {
+        expected.push_back({m.channel->topic, m.log_time_ns, std::string(m.data)});
+      }
+    }
+  });
+  ASSERT_EQ(expected_chunks, 2U);
+  ASSERT_FALSE(expected.empty());
+
+  const std::string out = dir.file("recovered.mcap");
+  const CliResult r = run(dir, "replay " + cut + " --recover " + out + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j["chunks"].get<std::uint64_t>(), expected_chunks);
+  EXPECT_EQ(j["messages"].get<std::uint64_t>(), expected.size());
+  EXPECT_EQ(j["data_end"].get<std::uint64_t>(), chunks[2].chunk_start_offset);
+  EXPECT_FALSE(j["complete"].get<bool>());
+
+  const teleop::record::McapReader recovered = teleop::record::McapReader::open(out);
+  EXPECT_TRUE(recovered.validate().empty());
+  std::vector<Kept> got;
+  recovered.for_each_message(teleop::record::Order::kFile, [&](const auto& m) {
+    got.push_back({m.channel->topic, m.log_time_ns, std::string(m.data)});
+  });
+  EXPECT_TRUE(got == expected) << got.size() << " vs " << expected.size();
+
+  // The recovered file replays: its summary counts the cycles of the kept telemetry.
+  const CliResult text = run(dir, "replay " + cut + " --recover " + dir.file("again.mcap"));
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(
+      text.out.find("kept 2 complete chunks, " + std::to_string(expected.size()) + " messages"),
+      std::string::npos)
+      << text.out;
+  EXPECT_EQ(run(dir, "replay " + out).exit_code, 0);
+}
+
+// --- live re-publication -----------------------------------------------------------------------
+
+// A loopback endpoint on a port the kernel just gave out.
+std::string free_endpoint() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  EXPECT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0);
+  socklen_t len = sizeof(a);
+  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
+  ::close(fd);
+  return "tcp://127.0.0.1:" + std::to_string(ntohs(a.sin_port));
+}
+
+// A child process with its stdout and stderr in files.
+class Child {
+ public:
+  Child(const std::vector<std::string>& args, const std::string& out_file) {
+    std::vector<char*> argv;
+    for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_addopen(&fa, 1, out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_adddup2(&fa, 1, 2);
+    if (posix_spawn(&pid_, argv[0], &fa, nullptr, argv.data(), environ) != 0) pid_ = -1;
+    posix_spawn_file_actions_destroy(&fa);
+  }
+  ~Child() {
+    if (pid_ > 0 && !exited_) {
+      kill(pid_, SIGKILL);
+      int status = 0;
+      waitpid(pid_, &status, 0);
+    }
+  }
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+  [[nodiscard]] bool started() const { return pid_ > 0; }
+  // Waits until the process exits or `timeout`; its exit code, or nothing.
+  std::optional<int> wait(std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      int status = 0;
+      if (waitpid(pid_, &status, WNOHANG) == pid_) {
+        exited_ = true;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+      }
+      std::this_thread::sleep_for(5ms);  // polling the exit, bounded by the deadline
+    }
+    return std::nullopt;
+  }
+
+ private:
+  pid_t pid_{-1};
+  bool exited_{false};
+};
+
+struct Status {
+  std::string state{};
+  double position_s{-1.0};
+  std::map<std::string, std::uint64_t> sent{};
+  std::map<std::string, std::uint64_t> subscriptions{};
+};
+
+Status parse_status(const std::string& reply) {
+  Status s;
+  std::smatch m;
+  static const std::regex re(
+      R"(^(\w+) at ([0-9.]+) s of [0-9.]+ s; speed [0-9.e+]+; sent \d+ messages, the file has )"
+      R"(\d+: master=(\d+) slave=(\d+) report=(\d+) alarm=(\d+); subscriptions: )"
+      R"(master=(\d+) slave=(\d+) report=(\d+)$)");
+  if (!std::regex_match(reply, m, re)) {
+    ADD_FAILURE() << "unexpected reply: " << reply;
+    return s;
+  }
+  s.state = m[1].str();
+  s.position_s = std::stod(m[2].str());
+  s.sent = {{"master", std::stoull(m[3].str())},
+            {"slave", std::stoull(m[4].str())},
+            {"report", std::stoull(m[5].str())},
+            {"alarm", std::stoull(m[6].str())}};
+  s.subscriptions = {{"master", std::stoull(m[7].str())},
+                     {"slave", std::stoull(m[8].str())},
+                     {"report", std::stoull(m[9].str())}};
+  return s;
+}
+
+TEST(Replay, SpeedRepublishesInOrderAndObeysPauseAndSeek) {
+  const TempDir dir;
+  const std::string file =
+      simulate_mcap(dir, scene("paddles_master_fixture.textproto"), "--duration 10", "live.mcap");
+  // What was recorded on the master's channel, in log-time order (the reader, not the replay).
+  std::vector<std::pair<std::uint64_t, std::string>> recorded;
+  std::string report_bytes;
+  {
+    const auto reader = teleop::record::McapReader::open(file);
+    reader.for_each_message(teleop::record::Order::kLogTime, [&](const auto& m) {
+      if (m.channel->topic == "/master/telemetry") recorded.emplace_back(m.log_time_ns, m.data);
+      if (m.channel->topic == "/supervisor/stability") report_bytes = m.data;
+    });
+  }
+  ASSERT_EQ(recorded.size(), 500U);
+
+  // Free ports of this run (teleopctl launch's defaults are 5560-5568).
+  const std::string master_ep = free_endpoint();
+  const std::string slave_ep = free_endpoint();
+  const std::string report_ep = free_endpoint();
+  const std::string control_ep = free_endpoint();
+  Child child(
+      {TELEOPCTL_PATH, "replay", file, "--speed", "10", "--paused", "--control", control_ep,
+       "--master-telemetry", master_ep, "--slave-telemetry", slave_ep, "--report", report_ep},
+      dir.file("replay.out"));
+  ASSERT_TRUE(child.started());
+
+  zmq::context_t ctx(1);
+  zmq::socket_t req(ctx, zmq::socket_type::req);
+  req.set(zmq::sockopt::linger, 0);
+  req.set(zmq::sockopt::rcvtimeo, 10000);
+  req.set(zmq::sockopt::sndtimeo, 10000);
+  req.connect(control_ep);
+  auto ask = [&](const std::string& text) {
+    EXPECT_TRUE(req.send(zmq::buffer(text), zmq::send_flags::none));
+    zmq::message_t reply;
+    const auto got = req.recv(reply);
+    EXPECT_TRUE(got.has_value()) << "no reply to '" << text << "'";
+    return got ? reply.to_string() : std::string();
+  };
+  zmq::socket_t sub(ctx, zmq::socket_type::sub);
+  sub.set(zmq::sockopt::linger, 0);
+  sub.set(zmq::sockopt::rcvhwm, 100000);
+  sub.set(zmq::sockopt::subscribe, "");
+  sub.connect(master_ep);
+  zmq::socket_t reports(ctx, zmq::socket_type::sub);
+  reports.set(zmq::sockopt::linger, 0);
+  reports.set(zmq::sockopt::subscribe, "report");
+  reports.connect(report_ep);
+  auto receive = [&](zmq::socket_t& s, std::chrono::milliseconds timeout) {
+    std::array<zmq::pollitem_t, 1> item{{{s.handle(), 0, ZMQ_POLLIN, 0}}};
+    zmq::poll(item.data(), 1, timeout);
+    zmq::message_t msg;
+    std::optional<std::string> out;
+    if (s.recv(msg, zmq::recv_flags::dontwait)) out = msg.to_string();
+    return out;
+  };
+
+  // Paused until both subscriptions have reached the replay (no message lost to a late join).
+  Status st = parse_status(ask("status"));
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while ((st.subscriptions["master"] == 0 || st.subscriptions["report"] == 0) &&
+         std::chrono::steady_clock::now() < deadline) {
+    (void)receive(sub, 10ms);  // nothing is sent while paused: a bounded wait
+    st = parse_status(ask("status"));
+  }
+  ASSERT_EQ(st.state, "paused");
+  ASSERT_GE(st.subscriptions["master"], 1U);
+  ASSERT_EQ(st.sent["master"], 0U);
+  EXPECT_EQ(st.position_s, 0.0);
+
+  st = parse_status(ask("resume"));
+  EXPECT_EQ(st.state, "playing");
+  // The stability report (log time 0) as supervisor_app publishes it: "report", then the bytes.
+  {
+    const auto tag = receive(reports, 5000ms);
+    ASSERT_TRUE(tag.has_value());
+    EXPECT_EQ(*tag, "report");
+    const auto body = receive(reports, 5000ms);
+    ASSERT_TRUE(body.has_value());
+    EXPECT_EQ(*body, report_bytes);
+  }
+  std::size_t received = 0;
+  auto expect_next = [&](const std::string& bytes, std::size_t index) {
+    ASSERT_LT(index, recorded.size());
+    EXPECT_EQ(bytes, recorded[index].second) << "message " << index;
+  };
+  while (received < 30) {
+    const auto m = receive(sub, 5000ms);
+    ASSERT_TRUE(m.has_value()) << "after " << received;
+    expect_next(*m, received++);
+  }
+  Status paused = parse_status(ask("pause"));
+  EXPECT_EQ(paused.state, "paused");
+  EXPECT_GE(paused.sent["master"], received);
+  EXPECT_GT(paused.position_s, 0.0);
+  // Everything sent before the pause arrives; nothing after it.
+  while (received < paused.sent["master"]) {
+    const auto m = receive(sub, 5000ms);
+    ASSERT_TRUE(m.has_value()) << "after " << received;
+    expect_next(*m, received++);
+  }
+  EXPECT_EQ(received, paused.sent["master"]);
+  Status still = parse_status(ask("status"));
+  EXPECT_EQ(still.sent["master"], paused.sent["master"]);
+  EXPECT_EQ(still.position_s, paused.position_s);
+  EXPECT_FALSE(receive(sub, 0ms).has_value());
+  EXPECT_EQ(ask("jump").rfind("error: unknown request 'jump'", 0), 0U);
+  EXPECT_NE(ask("speed 20").find("speed 20;"), std::string::npos);
+
+  // Seek to 6 s: playback continues with the first message logged at or after 6 s.
+  Status seek = parse_status(ask("seek 6"));
+  EXPECT_EQ(seek.position_s, 6.0);
+  EXPECT_EQ(seek.state, "paused");
+  std::size_t index = 0;
+  while (index < recorded.size() && recorded[index].first < 6'000'000'000ULL) ++index;
+  ASSERT_LT(index, recorded.size());
+  EXPECT_EQ(parse_status(ask("resume")).state, "playing");
+  const std::size_t after_seek = recorded.size() - index;
+  for (std::size_t i = 0; i < after_seek; ++i) {
+    const auto m = receive(sub, 5000ms);
+    ASSERT_TRUE(m.has_value()) << "after seek, message " << i;
+    expect_next(*m, index + i);
+    if (i == 0) {
+      teleop::v1::Telemetry t;
+      ASSERT_TRUE(t.ParseFromString(*m));
+      // Logged at the end of its last cycle's period: cycles 5981..6000 at 1 kHz.
+      EXPECT_EQ(t.cycles(0).sequence(), 5981U);
+    }
+  }
+  // At the end the replay exits by itself and says so.
+  const std::optional<int> code = child.wait(30s);
+  ASSERT_TRUE(code.has_value());
+  EXPECT_EQ(*code, 0);
+  const std::string out = read_text(dir.file("replay.out"));
+  EXPECT_NE(out.find("finished at 10.000000 s"), std::string::npos) << out;
+}
+
+// --- identification and resimulation ----------------------------------------------------------
+
+// A band-limited random push (0.5-10 Hz), seeded.
+std::vector<double> random_push(std::uint64_t seed, std::size_t n, double period_s, double rms) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> white(0.0, 1.0);
+  const double a_hi = 1.0 - std::exp(-2.0 * std::numbers::pi * 10.0 * period_s);
+  const double a_lo = 1.0 - std::exp(-2.0 * std::numbers::pi * 0.5 * period_s);
+  double l1 = 0.0;
+  double l2 = 0.0;
+  double slow = 0.0;
+  double sq = 0.0;
+  std::vector<double> out(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    l1 += a_hi * (white(rng) - l1);
+    l2 += a_hi * (l1 - l2);
+    slow += a_lo * (l2 - slow);
+    out[k] = l2 - slow;
+    sq += out[k] * out[k];
+  }
+  for (double& v : out) v *= rms / std::sqrt(sq / static_cast<double>(n));
+  return out;
+}
+
+TEST(IdentifySession, BothPaddlesFromASimulatedSessionFile) {
+  const TempDir dir;
+  // The master gains all zero: the hand pushes the master paddle alone, the slave follows on
+  // its own spring (tests/unit/stability/test_identify.cpp's scene).
+  const std::size_t n = 15000;
+  const std::vector<double> push = random_push(7, n, 1e-3, 1.0);
+  std::ostringstream s;
+  s << "sample_rate_hz: 1000\n"
+       "master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } }\n"
+       "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } }\n"
+       "gains { kps: 300 kds: 1 }\n"
+       "velocity_filter { cutoff_hz: 200 }\n"
+       "human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }\n"
+       "scene {\n  duration_s: 15\n  seed: 3\n  human_force { trace {\n";
+  s.precision(17);
+  for (std::size_t k = 0; k < n; k += 10) {
+    s << "    time_s: " << static_cast<double>(k) * 1e-3 << " force_N: " << push[k] << "\n";
+  }
+  s << "  } }\n}\n";
+  const std::string scene_path = dir.file("push.textproto");
+  std::ofstream(scene_path) << s.str();
+  const std::string file = simulate_mcap(dir, scene_path, "", "push.mcap");
+
+  const struct {
+    const char* device;
+    double mass_kg;
+    double damping_Ns_per_m;
+  } cases[] = {{"master", 0.040, 0.41}, {"slave", 0.036, 0.49}};
+  for (const auto& c : cases) {
+    const CliResult r = run(dir, "identify " + file + " --device " + c.device + " --json");
+    ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
+    const json j = json::parse(r.out);
+    const double m = j["mass_kg"].get<double>();
+    const double b = j["damping_Ns_per_m"].get<double>();
+    EXPECT_LT(std::abs(m / c.mass_kg - 1.0), 0.05) << c.device << " mass " << m;
+    EXPECT_LT(std::abs(b / c.damping_Ns_per_m - 1.0), 0.05) << c.device << " damping " << b;
+    EXPECT_GT(j["r_squared"].get<double>(), 0.9) << c.device;
+    ASSERT_EQ(j["runs"].size(), 1U);
+    EXPECT_EQ(
+        j["config"].get<std::string>().rfind(std::string(c.device) + " { device { mass_kg: ", 0),
+        0U);
+    std::cout << c.device << ": m " << m << " kg, b " << b << " Ns/m, r^2 "
+              << j["r_squared"].get<double>() << "\n";
+  }
+  // Column options are for CSV files.
+  const CliResult bad = run(dir, "identify " + file + " --position x --force f");
+  EXPECT_EQ(bad.exit_code, 1);
+  EXPECT_NE(bad.err.find("are for CSV files"), std::string::npos) << bad.err;
+}
+
+TEST(Replay, ResimulationWithASofterFixtureOscillatesLess) {
+  const TempDir dir;
+  const std::string path = scene("paddles_slave_fixture_unstable.textproto");
+  const std::string file = simulate_mcap(dir, path, "", "unstable.mcap");
+  const json sim = json::parse(run(dir, "simulate " + path + " --json").out);
+  ASSERT_TRUE(sim["oscillation"]["detected"].get<bool>());
+
+  // As recorded: the resimulation plays the lockstep's loop again and finds what it recorded.
+  CliResult r = run(dir, "replay " + file + " --resimulate --json");
+  EXPECT_EQ(r.exit_code, 3) << r.err;  // the resimulated slave oscillates
+  json j = json::parse(r.out);
+  const json rec = j["recorded"]["outcome"];
+  EXPECT_TRUE(rec["oscillation"]["detected"].get<bool>());
+  EXPECT_EQ(j["recorded"]["analysis"]["verdict"], sim["predicted"]["verdict"]);
+  EXPECT_EQ(j["resimulated"]["outcome"], rec);
+  const double recorded_amplitude = rec["oscillation"]["amplitude_m"].get<double>();
+  // The recorded buzz is the one simulate reported (sensed here, true positions there).
+  EXPECT_NEAR(recorded_amplitude, sim["oscillation"]["amplitude_m"].get<double>(), 2.5e-4);
+
+  r = run(dir,
+          "replay " + file + " --resimulate --set slave.fixture.stiffness_N_per_m=1000 --json");
+  ASSERT_TRUE(r.exit_code == 0 || r.exit_code == 3) << r.err;
+  j = json::parse(r.out);
+  EXPECT_EQ(j["resimulated"]["analysis"]["verdict"], "stable");
+  EXPECT_EQ(j["resimulated"]["analysis"]["slave_fixture_stiffness_N_per_m"].get<double>(), 1000.0);
+  EXPECT_EQ(j["recorded"]["analysis"]["slave_fixture_stiffness_N_per_m"].get<double>(), 4000.0);
+  const double amplitude = j["resimulated"]["outcome"]["oscillation"]["amplitude_m"].get<double>();
+  EXPECT_LT(amplitude, 0.6 * recorded_amplitude) << amplitude << " vs " << recorded_amplitude;
+  EXPECT_EQ(j["resimulated"]["outcome"]["cycles"], rec["cycles"]);
+
+  // A bad override names itself.
+  r = run(dir, "replay " + file + " --resimulate --set slave.fixture.stiffness_N_per_m=-5");
+  EXPECT_EQ(r.exit_code, 1);
+  EXPECT_NE(r.err.find("slave.fixture.stiffness_N_per_m"), std::string::npos) << r.err;
+}
+
+}  // namespace
