@@ -16,6 +16,7 @@
 #include "common/record/proto_schema.hpp"
 #include "common/scene/lockstep.hpp"
 #include "common/stability/analyzer.hpp"
+#include "supervisor/daemon/report.hpp"
 #include "supervisor/daemon/stability_guard.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
@@ -59,50 +60,17 @@ constexpr std::size_t kCyclesPerMessage = 20;
   return path.size() >= 5 && path.compare(path.size() - 5, 5, ".mcap") == 0;
 }
 
-[[nodiscard]] v1::Gains gains_proto(const Gains& g) {
-  v1::Gains p;
-  p.set_kpm(g.kpm);
-  p.set_kps(g.kps);
-  p.set_kdm(g.kdm);
-  p.set_kds(g.kds);
-  p.set_kvm(g.kvm);
-  p.set_kvs(g.kvs);
-  p.set_kfm(g.kfm);
-  return p;
-}
-
-// What the supervisor would publish at the start of this session (supervisor_app.cpp's
-// make_report): the analyser on the configured loop with the scene's round trip, which is the
-// one the lockstep simulator plays.
+// What the supervisor would publish at the start of this session (supervisor/daemon/report.hpp):
+// the analyser on the configured loop with the scene's round trip, which is the one the lockstep
+// simulator plays.
 [[nodiscard]] v1::StabilityReport start_report(const TeleopParams& params) {
   supervisor::StabilityGuard guard(params);
   const supervisor::Assessment a = guard.assess(guard.configured_inputs());
-  v1::StabilityReport r;
-  r.set_time_ns(0);
-  r.set_master_sequence(0);
-  r.set_verdict(std::string(stability::to_string(a.verdict)));
-  r.set_min_damping_ratio(a.min_damping_ratio);
-  r.set_required_damping_ratio(a.required_damping_ratio);
-  if (a.worst_human) {
-    r.mutable_worst_human()->set_mass_kg(a.worst_human->impedance.mass_kg);
-    r.mutable_worst_human()->set_damping_ns_per_m(a.worst_human->impedance.damping_Ns_per_m);
-    r.mutable_worst_human()->set_stiffness_n_per_m(a.worst_human->impedance.stiffness_N_per_m);
-    r.set_worst_human_force_n(a.worst_human->force_N);
-  }
-  r.set_master_fixture_stiffness_n_per_m(a.inputs.master_fixture_N_per_m);
-  r.set_slave_fixture_stiffness_n_per_m(a.inputs.slave_fixture_N_per_m);
-  if (a.max_master_N_per_m) r.set_max_stable_master_stiffness_n_per_m(*a.max_master_N_per_m);
-  if (a.max_slave_N_per_m) r.set_max_stable_slave_stiffness_n_per_m(*a.max_slave_N_per_m);
-  if (const auto m = a.master_margin()) r.set_master_margin(*m);
-  if (const auto m = a.slave_margin()) r.set_slave_margin(*m);
-  r.set_round_trip_samples(a.inputs.round_trip_samples);
-  r.set_measured_round_trip_ns(static_cast<std::int64_t>(
-      std::llround(1e9 * a.inputs.round_trip_samples / params.sample_rate_hz)));
-  r.set_sample_rate_hz(a.inputs.sample_rate_hz);
-  *r.mutable_gains() = gains_proto(a.inputs.gains);
-  r.set_reason("start (teleopctl simulate)");
-  r.set_parameter_change_id(0);
-  return r;
+  return supervisor::to_report(
+      a, supervisor::ReportContext{0, 0,
+                                   static_cast<std::int64_t>(std::llround(
+                                       1e9 * a.inputs.round_trip_samples / params.sample_rate_hz)),
+                                   "start (teleopctl simulate)", 0});
 }
 
 // The true force on each device's load cell at time 0 (the simulation's rows start after the
@@ -206,7 +174,7 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
     t.set_mode_reason("simulated (teleopctl simulate, lockstep)");
     t.set_device("sim");
     v1::ActiveParameters* a = t.mutable_active();
-    *a->mutable_gains() = gains_proto(p.gains);
+    *a->mutable_gains() = supervisor::to_proto(p.gains);
     a->set_master_fixture_stiffness_n_per_m(p.master_fixture.stiffness_N_per_m);
     a->set_slave_fixture_stiffness_n_per_m(p.slave_fixture.stiffness_N_per_m);
     a->set_ramp_progress(1.0);
