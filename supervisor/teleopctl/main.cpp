@@ -11,6 +11,7 @@
 #include "supervisor/teleopctl/replay_command.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
 #include "supervisor/teleopctl/simulate_command.hpp"
+#include "supervisor/teleopctl/status_command.hpp"
 
 namespace {
 
@@ -25,6 +26,8 @@ void usage(std::ostream& os) {
         "  set        a guarded parameter change through the supervisor ('teleopctl set --help')\n"
         "  identify   a device's mass and damping by least squares ('teleopctl identify --help')\n"
         "  replay     a recorded session: summary, CSV, re-publish, resimulate ('replay --help')\n"
+        "  estop      e-stop to both nodes directly (see 'teleopctl estop --help')\n"
+        "  status     the supervisor's status, --json for scripts ('teleopctl status --help')\n"
         "  help       this text\n";
 }
 
@@ -76,7 +79,9 @@ int main(int argc, char** argv) {
         Simple{"keygen", teleop::ctl::keygen_usage, teleop::ctl::run_keygen},
         Simple{"set", teleop::ctl::set_usage, teleop::ctl::run_set},
         Simple{"identify", teleop::ctl::identify_usage, teleop::ctl::run_identify},
-        Simple{"replay", teleop::ctl::replay_usage, teleop::ctl::run_replay}}) {
+        Simple{"replay", teleop::ctl::replay_usage, teleop::ctl::run_replay},
+        Simple{"estop", teleop::ctl::estop_usage, teleop::ctl::run_estop},
+        Simple{"status", teleop::ctl::status_usage, teleop::ctl::run_status}}) {
     if (args[0] != c.name) continue;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {

@@ -978,5 +978,50 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
                                            "\"report\" / \"alarm\"";
 }
 
+// Without a terminal (issue 6 groundwork): `teleopctl status --json` gives the supervisor's own
+// report, and `teleopctl estop CONFIG` reaches each node directly and both confirm safe.
+TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
+  TempDir dir;
+  SystemPorts ports;
+  System sys(dir, paddles_config(ports, dir.path() / "sessions", 0.5,
+                                 "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }"));
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
+  TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
+  sys.start_supervisor();
+  sys.start_nodes();
+  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
+  engage(ctx, ports.nodes);
+  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+
+  const CliResult status =
+      teleopctl("status --json --supervisor 127.0.0.1:" + std::to_string(ports.request), false);
+  ASSERT_EQ(status.exit_code, 0) << status.out;
+  const nlohmann::json j = nlohmann::json::parse(status.out);
+  const auto direct = supervisor_status(ctx, ports.request);
+  ASSERT_TRUE(direct.has_value());
+  EXPECT_EQ(j["report"]["verdict"], direct->report().verdict());
+  EXPECT_DOUBLE_EQ(j["report"]["minDampingRatio"].get<double>(),
+                   direct->report().min_damping_ratio());
+  EXPECT_DOUBLE_EQ(j["report"]["maxStableSlaveStiffnessNPerM"].get<double>(),
+                   direct->report().max_stable_slave_stiffness_n_per_m());
+  EXPECT_EQ(j["masterAlive"], true);
+  EXPECT_EQ(j["slaveAlive"], true);
+
+  const CliResult estop = teleopctl("estop " + sys.config().string());
+  EXPECT_EQ(estop.exit_code, 0) << estop.out;
+  EXPECT_NE(estop.out.find("master " + tcp(ports.nodes.master_command) + ": SAFE (e-stop)"),
+            std::string::npos)
+      << estop.out;
+  EXPECT_NE(estop.out.find("slave " + tcp(ports.nodes.slave_command) + ": SAFE (e-stop)"),
+            std::string::npos)
+      << estop.out;
+  ASSERT_TRUE(mt.wait_for_mode(v1::SAFE));
+  ASSERT_TRUE(st.wait_for_mode(v1::SAFE));
+}
+
 }  // namespace
 }  // namespace teleop::test
