@@ -30,6 +30,20 @@ void NodeStateMachine::go(Mode m, const char* why, std::chrono::nanoseconds now)
   reason_ = why;
 }
 
+bool NodeStateMachine::coupling_lost(const CycleInputs& in, bool peer_fresh,
+                                     bool peer_may_disengage) noexcept {
+  if (!peer_fresh) {
+    go(Mode::kSafe, "peer timeout", in.now);
+  } else if (in.peer_failed) {
+    go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
+  } else if (peer_may_disengage && in.peer_disengaged) {
+    go(Mode::kArmed, "peer disengaged", in.now);
+  } else {
+    return false;
+  }
+  return true;
+}
+
 CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
   const bool peer_fresh = in.peer_seen && in.peer_age <= params_.peer_timeout;
   // Safety first, from any state: e-stop and faults win over everything else.
@@ -54,37 +68,24 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
         }
         break;
       case Mode::kAligning:
-        if (!peer_fresh) {
-          go(Mode::kSafe, "peer timeout", in.now);
-        } else if (in.peer_failed) {
-          go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
-        } else if (in.command == Command::kDisengage) {
+        if (coupling_lost(in, peer_fresh, false)) break;
+        if (in.command == Command::kDisengage) {
           go(Mode::kArmed, "disengage", in.now);
         } else if (in.aligned) {
           go(Mode::kEngaged, "aligned", in.now);
         }
         break;
       case Mode::kEngaged:
-        if (!peer_fresh) {
-          go(Mode::kSafe, "peer timeout", in.now);
-        } else if (in.peer_failed) {
-          go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
-        } else if (in.peer_disengaged) {
-          go(Mode::kArmed, "peer disengaged", in.now);
-        } else if (in.command == Command::kDisengage) {
+        if (coupling_lost(in, peer_fresh, true)) break;
+        if (in.command == Command::kDisengage) {
           go(Mode::kArmed, "disengage", in.now);
         } else if (in.command == Command::kClutch) {
           go(Mode::kClutched, "clutch", in.now);
         }
         break;
       case Mode::kClutched:
-        if (!peer_fresh) {
-          go(Mode::kSafe, "peer timeout", in.now);
-        } else if (in.peer_failed) {
-          go(Mode::kSafe, "peer safe, faulted or restarted", in.now);
-        } else if (in.peer_disengaged) {
-          go(Mode::kArmed, "peer disengaged", in.now);
-        } else if (in.command == Command::kDisengage) {
+        if (coupling_lost(in, peer_fresh, true)) break;
+        if (in.command == Command::kDisengage) {
           go(Mode::kArmed, "disengage", in.now);
         } else if (in.command == Command::kUnclutch) {
           go(Mode::kEngaged, "unclutch", in.now);

@@ -60,6 +60,9 @@ class NodeStateMachine {
 
  private:
   void go(Mode m, const char* why, std::chrono::nanoseconds now) noexcept;
+  // While aligning, engaged or clutched: a stale, failed, restarted (or, once coupled,
+  // disengaged) peer ends the coupling. True when it did.
+  bool coupling_lost(const CycleInputs& in, bool peer_fresh, bool peer_may_disengage) noexcept;
 
   StateMachineParams params_{};
   Mode mode_{Mode::kDisarmed};
