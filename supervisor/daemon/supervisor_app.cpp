@@ -371,8 +371,16 @@ struct SupervisorApp::Impl {
                         live.round_trip_samples, live.sample_rate_hz),
             {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
       publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
-      if (rtt_grew && !guard.assess(live).acceptable())
-        lower_fixtures("the measured round trip grew");
+      if (rtt_grew && !guard.assess(live).acceptable()) {
+        // Announced like every change the supervisor makes: an ACTION alarm naming it.
+        const std::string action = lower_fixtures("the measured round trip grew");
+        alarm(v1::Alarm::ACTION, "round_trip", "system",
+              fmt::format("the model with a {}-sample round trip no longer meets the requirement",
+                          live.round_trip_samples),
+              {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"},
+               {"min_damping_ratio", guard.assess(live).min_damping_ratio, ""}},
+              action);
+      }
     }
     // Oscillation and passivity, with escalation.
     if (escalation_stage == 1 && !settled && now >= escalated_ns) {
