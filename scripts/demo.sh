@@ -21,6 +21,7 @@ echo "== a slave fixture below and above its limit, simulated with the nodes' co
 ./build/supervisor/teleopctl/teleopctl simulate examples/scenes/paddles_slave_fixture_unstable.textproto || true
 echo
 echo "== the main job: teleop-master and teleop-slave on loopback, engaged (Ctrl-C stops them)"
+echo "   watch and command it from another terminal: ./build/supervisor/teleopctl/teleopctl console"
 duration=()
 if [[ -n "${DEMO_DURATION:-}" ]]; then duration=(--duration "$DEMO_DURATION"); fi
 ./build/supervisor/teleopctl/teleopctl launch examples/live.textproto "${duration[@]}"

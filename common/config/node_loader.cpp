@@ -197,6 +197,11 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
     check_key("security.client_public_keys[" + std::to_string(i) + "]", sec.client_public_keys(i));
     out.keys.allowed_client_keys.push_back(sec.client_public_keys(i));
   }
+  check_key("security.supervisor_public_key", sec.supervisor_public_key());
+  for (int i = 0; i < sec.read_only_client_public_keys_size(); ++i) {
+    check_key("security.read_only_client_public_keys[" + std::to_string(i) + "]",
+              sec.read_only_client_public_keys(i));
+  }
   p.throw_if_any();
   return out;
 }

@@ -44,6 +44,11 @@ class SessionRecorder final : public RecordSink {
   [[nodiscard]] std::string file() const override { return file_.string(); }
   [[nodiscard]] std::uint64_t recorded() const override { return recorder_.written(); }
   [[nodiscard]] std::uint64_t drops() const override { return recorder_.drops(); }
+  [[nodiscard]] std::uint64_t bytes() const override {
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(file_, ec);
+    return ec ? 0 : static_cast<std::uint64_t>(size);
+  }
 
  private:
   std::filesystem::path file_;
@@ -64,8 +69,13 @@ std::unique_ptr<RecordSink> make_session_recorder(const std::filesystem::path& d
   tm utc{};
   gmtime_r(&now, &utc);
   char name[64];
-  strftime(name, sizeof(name), "teleop-session-%Y%m%d-%H%M%S.mcap", &utc);
-  return make_session_recorder_at(dir / name);
+  strftime(name, sizeof(name), "teleop-session-%Y%m%d-%H%M%S", &utc);
+  // A second file within the same second (recording stopped and started again) gets a suffix.
+  std::filesystem::path file = dir / (std::string(name) + ".mcap");
+  for (int i = 2; std::filesystem::exists(file); ++i) {
+    file = dir / (std::string(name) + "-" + std::to_string(i) + ".mcap");
+  }
+  return make_session_recorder_at(file);
 }
 
 }  // namespace teleop::supervisor

@@ -22,6 +22,7 @@
 #include "supervisor/daemon/monitors.hpp"
 #include "supervisor/daemon/report.hpp"
 #include "supervisor/daemon/stability_guard.hpp"
+#include "supervisor/daemon/status_builder.hpp"
 #include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
@@ -57,6 +58,7 @@ struct NodeView {
   std::deque<std::int64_t> cycle_times{};
   std::unique_ptr<OscillationMonitor> oscillation{};
   std::unique_ptr<PassivityObserver> passivity{};
+  std::unique_ptr<NodeSummaryBuilder> summary{};
   double previous_position_m{0.0};
   bool have_position{false};
   std::int64_t oscillating_since_ns{0};
@@ -95,6 +97,13 @@ struct SupervisorApp::Impl {
       n->oscillation = std::make_unique<OscillationMonitor>(period_s, 0.5, oscillation_threshold_m);
       n->passivity = std::make_unique<PassivityObserver>(period_s);
     }
+    master.summary = std::make_unique<NodeSummaryBuilder>(true, params.master_fixture.position_m,
+                                                          params.master_fixture.stiffness_N_per_m);
+    slave.summary = std::make_unique<NodeSummaryBuilder>(false, params.slave_fixture.position_m,
+                                                         params.slave_fixture.stiffness_N_per_m);
+    for (const std::string& k : config.config.security().read_only_client_public_keys()) {
+      read_only_keys.push_back(k);
+    }
     if (!s.secret_key_file().empty()) {
       own_key = transport::load_secret_key_file(s.secret_key_file());
     }
@@ -122,6 +131,8 @@ struct SupervisorApp::Impl {
     for (const std::string& k : loaded.config.security().client_public_keys()) {
       sec.allowed_client_keys.push_back(k);
     }
+    // Read-only consoles connect too; what they may ask is decided per request.
+    for (const std::string& k : read_only_keys) sec.allowed_client_keys.push_back(k);
     return sec;
   }
 
@@ -178,7 +189,7 @@ struct SupervisorApp::Impl {
     const std::string key = kind + "/" + side;
     const std::int64_t now = monotonic_ns();
     auto it = last_alarm_ns.find(key);
-    if (severity < v1::Alarm::ACTION && it != last_alarm_ns.end() &&
+    if (severity < v1::Alarm::ACTION && kind != "command" && it != last_alarm_ns.end() &&
         now - it->second < 2'000'000'000) {
       return;  // one of a kind per side per 2 s, unless the supervisor acted
     }
@@ -275,6 +286,7 @@ struct SupervisorApp::Impl {
             {{"session_id", static_cast<double>(t.session_id() % 1000000), ""}});
       n.oscillation->clear();
       n.passivity->reset();
+      n.summary->reset();
     }
     n.session_id = t.session_id();
     if (n.mode != t.mode() && (t.mode() == v1::SAFE || t.mode() == v1::FAULT)) {
@@ -287,16 +299,9 @@ struct SupervisorApp::Impl {
     for (const v1::CycleRecord& c : t.cycles()) {
       n.cycle_times.push_back(c.sample_time_ns());
       while (n.cycle_times.size() > 2000) n.cycle_times.pop_front();
-      if (c.mode() == v1::ENGAGED || c.mode() == v1::CLUTCHED) {
-        n.oscillation->add(c.position_m());
-        // The port's force along +x: the human's on the master handle; minus the measured
-        // environment force on the slave (the load cell reads the slave's push, compression +).
-        n.passivity->add(is_master ? c.force_n() : -c.force_n(), c.velocity_m_per_s());
-      } else {
-        n.oscillation->clear();
-        n.passivity->reset();
-      }
+      feed_monitors(c, is_master, *n.oscillation, *n.passivity);
     }
+    n.summary->add(t, now);
     record(is_master ? "/master/telemetry" : "/slave/telemetry", t);
   }
 
@@ -509,19 +514,129 @@ struct SupervisorApp::Impl {
       rec.set_time_ns(monotonic_ns());
       record("/supervisor/parameter_changes", rec);
       spdlog::info("change request ({}): {}", c.requested_by(), reply.change().reason());
+    } else if (req.has_node_command()) {
+      *reply.mutable_node_command() = forward_node_command(req.node_command());
+    } else if (req.has_recording()) {
+      set_recording(req.recording().record(), reply);
+      fill_status(*reply.mutable_status(), true);
     } else {
-      v1::SupervisorStatus* s = reply.mutable_status();
-      *s->mutable_report() = report;
-      for (const v1::Alarm& a : recent_alarms) *s->add_recent_alarms() = a;
-      if (opts.sink) {
-        s->set_recording_file(opts.sink->file());
-        s->set_recorded_messages(opts.sink->recorded());
-        s->set_recording_drops(opts.sink->drops());
-      }
-      const std::int64_t now = monotonic_ns();
-      s->set_master_alive(master.last && now - master.last_received_ns < 500'000'000);
-      s->set_slave_alive(slave.last && now - slave.last_received_ns < 500'000'000);
+      fill_status(*reply.mutable_status(), true);
     }
+  }
+
+  void fill_status(v1::SupervisorStatus& s, bool may_command) const {
+    const std::int64_t now = monotonic_ns();
+    s.set_time_ns(now);
+    s.set_source("live");
+    *s.mutable_report() = report;
+    int shown = 0;
+    for (const v1::Alarm& a : recent_alarms) {
+      if (++shown > 20) break;
+      *s.add_recent_alarms() = a;
+    }
+    s.set_record_dir(opts.record_dir);
+    if (opts.sink) {
+      s.set_recording_file(opts.sink->file());
+      s.set_recorded_messages(opts.sink->recorded());
+      s.set_recording_drops(opts.sink->drops());
+      s.set_recording_bytes(opts.sink->bytes());
+    }
+    s.set_master_alive(master.last && now - master.last_received_ns < 500'000'000);
+    s.set_slave_alive(slave.last && now - slave.last_received_ns < 500'000'000);
+    master.summary->fill(*s.mutable_master(), now,
+                         read_monitors(*master.oscillation, *master.passivity));
+    slave.summary->fill(*s.mutable_slave(), now,
+                        read_monitors(*slave.oscillation, *slave.passivity));
+    s.set_client_may_command(may_command);
+  }
+
+  // A state command from a console, forwarded to the node(s) it names; both nodes' replies
+  // come back and the outcome is announced (an INFO alarm of kind "command") and recorded.
+  v1::NodeCommandResult forward_node_command(const v1::NodeCommandRequest& r) {
+    v1::NodeCommandResult result;
+    const v1::NodeCommand::Kind k = r.kind();
+    if (k != v1::NodeCommand::ARM && k != v1::NodeCommand::ENGAGE &&
+        k != v1::NodeCommand::DISENGAGE && k != v1::NodeCommand::CLUTCH &&
+        k != v1::NodeCommand::UNCLUTCH && k != v1::NodeCommand::CLEAR &&
+        k != v1::NodeCommand::ESTOP && k != v1::NodeCommand::STATUS) {
+      throw std::invalid_argument("node command " + v1::NodeCommand::Kind_Name(k) +
+                                  " is not forwarded (arm, engage, disengage, clutch, unclutch, "
+                                  "clear, estop, status; gains through a parameter change)");
+    }
+    const std::string target = r.target().empty() ? "both" : r.target();
+    if (target != "both" && target != "master" && target != "slave") {
+      throw std::invalid_argument("node command target '" + target +
+                                  "' is not master, slave or both");
+    }
+    v1::NodeCommand c;
+    c.set_kind(k);
+    std::string summary;
+    // An e-stop always goes to both, whatever the first answers.
+    for (const auto& [name, setup] :
+         {std::pair<std::string, const config::NodeSetup*>{"master", &master_setup},
+          std::pair<std::string, const config::NodeSetup*>{"slave", &slave_setup}}) {
+      if (k != v1::NodeCommand::ESTOP && target != "both" && target != name) continue;
+      v1::NodeCommandOutcome* o = result.add_outcomes();
+      o->set_node(name);
+      const auto reply = command(*setup, c);
+      o->set_replied(reply.has_value());
+      if (reply) *o->mutable_reply() = *reply;
+      summary +=
+          fmt::format("{}{} {}", summary.empty() ? "" : ", ", name,
+                      reply ? fmt::format("{}{}", v1::NodeMode_Name(reply->mode()),
+                                          reply->ok() ? "" : " (refused: " + reply->message() + ")")
+                            : std::string("NO REPLY"));
+    }
+    if (k != v1::NodeCommand::STATUS) {
+      alarm(k == v1::NodeCommand::ESTOP ? v1::Alarm::WARNING : v1::Alarm::INFO, "command", target,
+            fmt::format("{} by {}: {}", v1::NodeCommand::Kind_Name(k),
+                        r.requested_by().empty() ? std::string("operator") : r.requested_by(),
+                        summary),
+            {});
+    }
+    return result;
+  }
+
+  void set_recording(bool on, v1::SupervisorReply& reply) {
+    if (!on) {
+      if (!opts.sink) {
+        reply.set_error("not recording");
+        return;
+      }
+      const std::string file = opts.sink->file();
+      opts.sink.reset();  // closes the file: summary and footer written
+      alarm(v1::Alarm::INFO, "command", "system", "recording stopped: " + file, {});
+      return;
+    }
+    if (opts.sink) {
+      reply.set_error("already recording to " + opts.sink->file());
+      return;
+    }
+    if (!opts.new_sink) {
+      reply.set_error("this supervisor cannot start a recording (no record directory)");
+      return;
+    }
+    opts.sink = opts.new_sink();
+    record("/config", loaded.config);
+    record("/supervisor/stability", report);
+    alarm(v1::Alarm::INFO, "command", "system", "recording started: " + opts.sink->file(), {});
+  }
+
+  // Whether `request` may come from a client with this key (Z85; empty: no CURVE).
+  std::string read_only_refusal(const v1::SupervisorRequest& req, const std::string& key) const {
+    if (key.empty() ||
+        std::find(read_only_keys.begin(), read_only_keys.end(), key) == read_only_keys.end()) {
+      return {};
+    }
+    if (req.has_status()) return {};
+    if (req.has_node_command() && (req.node_command().kind() == v1::NodeCommand::ESTOP ||
+                                   req.node_command().kind() == v1::NodeCommand::STATUS)) {
+      return {};
+    }
+    if (req.has_change() && req.change().dry_run()) return {};
+    return "refused: this client's key " + key +
+           " is read-only (security.read_only_client_public_keys): status, predictions and "
+           "e-stop only";
   }
 
   void run(const std::atomic<bool>& stop) {
@@ -560,11 +675,27 @@ struct SupervisorApp::Impl {
       if (request_rep->recv(msg, zmq::recv_flags::dontwait)) {
         v1::SupervisorRequest req;
         v1::SupervisorReply reply;
+        std::string key;
+        try {
+          const char* uid = msg.gets("User-Id");
+          if (uid != nullptr) key = uid;
+        } catch (const zmq::error_t&) {
+          // No ZAP user id (plaintext on loopback): a local client, not read-only.
+        }
         if (!req.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) {
           reply.set_error("malformed request");
+        } else if (const std::string why = read_only_refusal(req, key); !why.empty()) {
+          reply.set_error(why);
+          reply.set_refused_read_only(true);
+          spdlog::warn("{}", why);
         } else {
           try {
             on_request(req, reply);
+            if (reply.has_status()) {
+              reply.mutable_status()->set_client_may_command(
+                  key.empty() || std::find(read_only_keys.begin(), read_only_keys.end(), key) ==
+                                     read_only_keys.end());
+            }
           } catch (const std::exception& e) {
             reply.set_error(e.what());
           }
@@ -575,6 +706,13 @@ struct SupervisorApp::Impl {
       if (monotonic_ns() >= next_check) {
         next_check += 100'000'000;
         check_live();
+        // The summary stream consoles draw from: ten times a second.
+        v1::SupervisorStatus st;
+        fill_status(st, false);
+        const std::string bytes = st.SerializeAsString();
+        (void)report_pub->send(zmq::str_buffer("status"),
+                               zmq::send_flags::sndmore | zmq::send_flags::dontwait);
+        (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
         // Once a second the supervisor's own status goes into the session: the recorder's
         // drops and counts, the nodes' liveness, the report in force.
         if (++checks % 10 == 0 && opts.sink) {
@@ -614,6 +752,7 @@ struct SupervisorApp::Impl {
   std::deque<v1::Alarm> recent_alarms{};
   std::map<std::string, std::int64_t> last_alarm_ns{};
   std::uint64_t checks{0};
+  std::vector<std::string> read_only_keys{};
   int escalation_stage{0};
   std::int64_t escalated_ns{0};  // stage 1: when the lowered stiffness is fully in force
   bool settled{true};

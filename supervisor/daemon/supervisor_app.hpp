@@ -27,11 +27,15 @@ class RecordSink {
   [[nodiscard]] virtual std::string file() const { return {}; }
   [[nodiscard]] virtual std::uint64_t recorded() const { return 0; }
   [[nodiscard]] virtual std::uint64_t drops() const { return 0; }
+  [[nodiscard]] virtual std::uint64_t bytes() const { return 0; }
 };
 
 struct SupervisorOptions {
   std::unique_ptr<RecordSink> sink{};  // none: no recording
-  std::string log_file{};              // rotating log file; empty: terminal only
+  // Starts a new session file on request (a console's "start recording"); none: refused.
+  std::function<std::unique_ptr<RecordSink>()> new_sink{};
+  std::string record_dir{};
+  std::string log_file{};  // rotating log file; empty: terminal only
 };
 
 class SupervisorApp {

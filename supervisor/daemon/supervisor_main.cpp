@@ -71,6 +71,11 @@ int run_supervisor_main(int argc, char** argv) {
         record_dir ? *record_dir : (s.record_dir().empty() ? "." : s.record_dir());
     SupervisorOptions options;
     std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
+    options.record_dir = dir.string();
+    options.new_sink = [dir] {
+      std::filesystem::create_directories(dir);
+      return make_session_recorder(dir);
+    };
     if (recording) {
       std::filesystem::create_directories(dir);
       options.sink = make_session_recorder(dir);

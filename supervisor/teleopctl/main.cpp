@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "supervisor/teleopctl/analyze_command.hpp"
+#include "supervisor/teleopctl/console_command.hpp"
 #include "supervisor/teleopctl/identify_command.hpp"
 #include "supervisor/teleopctl/keygen_command.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
@@ -28,6 +29,7 @@ void usage(std::ostream& os) {
         "  replay     a recorded session: summary, CSV, re-publish, resimulate ('replay --help')\n"
         "  estop      e-stop to both nodes directly (see 'teleopctl estop --help')\n"
         "  status     the supervisor's status, --json for scripts ('teleopctl status --help')\n"
+        "  console    the operator's full-screen console, live or on a replay ('--help')\n"
         "  help       this text\n";
 }
 
@@ -81,7 +83,8 @@ int main(int argc, char** argv) {
         Simple{"identify", teleop::ctl::identify_usage, teleop::ctl::run_identify},
         Simple{"replay", teleop::ctl::replay_usage, teleop::ctl::run_replay},
         Simple{"estop", teleop::ctl::estop_usage, teleop::ctl::run_estop},
-        Simple{"status", teleop::ctl::status_usage, teleop::ctl::run_status}}) {
+        Simple{"status", teleop::ctl::status_usage, teleop::ctl::run_status},
+        Simple{"console", teleop::ctl::console_usage, teleop::ctl::run_console}}) {
     if (args[0] != c.name) continue;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {

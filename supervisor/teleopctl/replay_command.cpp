@@ -11,6 +11,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <deque>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -34,7 +35,9 @@
 #include "common/scene/oscillation.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
+#include "supervisor/daemon/monitors.hpp"
 #include "supervisor/daemon/stability_guard.hpp"
+#include "supervisor/daemon/status_builder.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
@@ -53,6 +56,7 @@ constexpr const char* kSlaveTopic = "/slave/telemetry";
 constexpr const char* kStabilityTopic = "/supervisor/stability";
 constexpr const char* kAlarmTopic = "/supervisor/alarms";
 constexpr const char* kChangeTopic = "/supervisor/parameter_changes";
+constexpr const char* kStatusTopic = "/supervisor/status";
 constexpr const char* kDefaultControl = "tcp://127.0.0.1:5568";
 constexpr const char* kDefaultReport = "tcp://127.0.0.1:5566";
 
@@ -727,6 +731,200 @@ struct LiveItem {
   std::string_view data{};
 };
 
+// How the summary stream's monitors and node summaries are set up: as teleop-supervisor sets
+// up its own from the same configuration (supervisor_app.cpp).
+struct SummarySetup {
+  double period_s{1e-3};
+  double oscillation_threshold_m{0.0};
+  FixtureParams master_fixture{};
+  FixtureParams slave_fixture{};
+};
+
+[[nodiscard]] double encoder_count_m(const sim::EncoderParams& e) {
+  return 2.0 * std::numbers::pi * e.metres_per_radian / (e.counts_per_rev * e.transmission_ratio);
+}
+
+[[nodiscard]] SummarySetup summary_setup(const std::optional<config::LoadedConfig>& cfg,
+                                         std::ostream& err) {
+  SummarySetup s;
+  s.oscillation_threshold_m = 2.0 * encoder_count_m(sim::EncoderParams{});
+  if (!cfg) return s;
+  const v1::Supervisor& sup = cfg->config.supervisor();
+  try {
+    const TeleopParams params = config::to_teleop_params(*cfg);
+    s.period_s = 1.0 / params.sample_rate_hz;
+    s.master_fixture = params.master_fixture;
+    s.slave_fixture = params.slave_fixture;
+    // The master's encoder count, as the supervisor takes it.
+    s.oscillation_threshold_m =
+        2.0 * encoder_count_m(config::to_node_setup(*cfg, transport::Role::kMaster).sim.encoder);
+  } catch (const std::exception& e) {
+    err << fmt::format(
+        "teleopctl replay: the recorded /config does not describe the teleoperator ({}); the "
+        "summary stream's monitors use defaults\n",
+        e.what());
+  }
+  if (sup.has_oscillation_threshold_m()) s.oscillation_threshold_m = sup.oscillation_threshold_m();
+  return s;
+}
+
+// What the summary stream shows at a position of the replay: the file's messages up to that
+// log time, fed as teleop-supervisor feeds what it receives (fill_status in supervisor_app.cpp),
+// with the recorded log times for its clock.
+class ReplaySummary {
+ public:
+  enum Kind { kMaster = 0, kSlave = 1, kReport = 2, kAlarm = 3, kRecordedStatus = 4 };
+  struct Item {
+    Kind kind{kMaster};
+    std::uint64_t log_time_ns{0};
+    std::string_view data{};
+  };
+
+  ReplaySummary(const SummarySetup& setup, std::vector<Item> items)
+      : items_(std::move(items)),
+        master_(true, setup.master_fixture, setup),
+        slave_(false, setup.slave_fixture, setup) {}
+
+  // Everything logged at or before `log_time_ns` applied; a time earlier than the last one (a
+  // seek back) starts again from the beginning of the file.
+  void advance_to(std::uint64_t log_time_ns) {
+    if (log_time_ns < applied_until_ns_) reset();
+    applied_until_ns_ = log_time_ns;
+    while (next_ < items_.size() && items_[next_].log_time_ns <= log_time_ns) {
+      apply(items_[next_]);
+      ++next_;
+    }
+  }
+
+  void fill(v1::SupervisorStatus& s) const {
+    const auto now = static_cast<std::int64_t>(applied_until_ns_);
+    s.set_time_ns(now);
+    s.set_source("replay");
+    if (report_) *s.mutable_report() = *report_;
+    for (const v1::Alarm& a : alarms_) *s.add_recent_alarms() = a;
+    if (recorded_) {
+      s.set_recording_file(recorded_->recording_file());
+      s.set_recorded_messages(recorded_->recorded_messages());
+      s.set_recording_drops(recorded_->recording_drops());
+      s.set_recording_bytes(recorded_->recording_bytes());
+    }
+    master_.fill(*s.mutable_master(), now);
+    slave_.fill(*s.mutable_slave(), now);
+    s.set_master_alive(s.master().alive());
+    s.set_slave_alive(s.slave().alive());
+    s.set_client_may_command(false);  // a replay cannot be commanded
+  }
+
+ private:
+  static constexpr std::size_t kAlarmsShown = 20;
+
+  struct Side {
+    Side(bool is_master, const FixtureParams& fixture, const SummarySetup& setup)
+        : is_master_side(is_master),
+          builder(is_master, fixture.position_m, fixture.stiffness_N_per_m),
+          oscillation(setup.period_s, 0.5, setup.oscillation_threshold_m),
+          passivity(setup.period_s) {}
+    void reset() {
+      builder.reset();
+      oscillation.clear();
+      passivity.reset();
+      session_id = 0;
+    }
+    void add(const v1::Telemetry& t, std::uint64_t log_time_ns) {
+      // A restarted node (a new session) starts its summary again, as in the supervisor.
+      if (session_id != 0 && t.session_id() != session_id) reset();
+      session_id = t.session_id();
+      for (const v1::CycleRecord& c : t.cycles()) {
+        supervisor::feed_monitors(c, is_master_side, oscillation, passivity);
+      }
+      builder.add(t, static_cast<std::int64_t>(log_time_ns));
+    }
+    void fill(v1::NodeSummary& out, std::int64_t now_ns) const {
+      builder.fill(out, now_ns, supervisor::read_monitors(oscillation, passivity));
+    }
+    bool is_master_side;
+    supervisor::NodeSummaryBuilder builder;
+    supervisor::OscillationMonitor oscillation;
+    supervisor::PassivityObserver passivity;
+    std::uint64_t session_id{0};
+  };
+
+  void reset() {
+    master_.reset();
+    slave_.reset();
+    report_.reset();
+    alarms_.clear();
+    recorded_.reset();
+    next_ = 0;
+    applied_until_ns_ = 0;
+  }
+
+  // A message that does not decode is left out of the summary (it is still re-published).
+  void apply(const Item& it) {
+    const auto parse = [&](pb::Message& m) {
+      return m.ParseFromArray(it.data.data(), static_cast<int>(it.data.size()));
+    };
+    switch (it.kind) {
+      case kMaster:
+      case kSlave: {
+        v1::Telemetry t;
+        if (parse(t)) (it.kind == kMaster ? master_ : slave_).add(t, it.log_time_ns);
+        break;
+      }
+      case kReport: {
+        v1::StabilityReport r;
+        if (parse(r)) report_ = std::move(r);
+        break;
+      }
+      case kAlarm: {
+        v1::Alarm a;
+        if (parse(a)) {
+          alarms_.push_front(std::move(a));
+          while (alarms_.size() > kAlarmsShown) alarms_.pop_back();
+        }
+        break;
+      }
+      case kRecordedStatus: {
+        v1::SupervisorStatus st;
+        if (parse(st)) recorded_ = std::move(st);
+        break;
+      }
+    }
+  }
+
+  std::vector<Item> items_;
+  std::size_t next_{0};
+  std::uint64_t applied_until_ns_{0};
+  Side master_;
+  Side slave_;
+  std::optional<v1::StabilityReport> report_{};
+  std::deque<v1::Alarm> alarms_{};  // newest first
+  std::optional<v1::SupervisorStatus> recorded_{};
+};
+
+// The messages the summary stream is built from, in log-time order: those of the topics it
+// reads whose schema is the one it decodes.
+[[nodiscard]] std::vector<ReplaySummary::Item> summary_items(const record::McapReader& reader) {
+  std::vector<ReplaySummary::Item> items;
+  reader.for_each_message(record::Order::kLogTime, [&](const record::MessageView& m) {
+    const std::string& t = m.channel->topic;
+    const std::string schema = m.schema ? m.schema->name : std::string();
+    auto is = [&](const pb::Descriptor* d) { return schema == d->full_name(); };
+    std::optional<ReplaySummary::Kind> kind;
+    if (t == kMasterTopic && is(v1::Telemetry::descriptor())) kind = ReplaySummary::kMaster;
+    if (t == kSlaveTopic && is(v1::Telemetry::descriptor())) kind = ReplaySummary::kSlave;
+    if (t == kStabilityTopic && is(v1::StabilityReport::descriptor())) {
+      kind = ReplaySummary::kReport;
+    }
+    if (t == kAlarmTopic && is(v1::Alarm::descriptor())) kind = ReplaySummary::kAlarm;
+    if (t == kStatusTopic && is(v1::SupervisorStatus::descriptor())) {
+      kind = ReplaySummary::kRecordedStatus;
+    }
+    if (kind) items.push_back({*kind, m.log_time_ns, m.data});
+  });
+  return items;
+}
+
 int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostream& out,
                 std::ostream& err) {
   const std::optional<config::LoadedConfig> cfg = recorded_config(reader, a.overrides);
@@ -758,6 +956,7 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
   const std::uint64_t t0 = first_log_time(reader);
   const double duration_s = seconds_since(last_log_time(reader), t0);
   auto pos_of = [&](std::size_t i) { return seconds_since(items[i].log_time_ns, t0); };
+  ReplaySummary summary(summary_setup(cfg, err), summary_items(reader));
 
   // Plaintext (the replay holds no node's keys); off loopback only with security.insecure.
   transport::LinkSecurity security;
@@ -829,6 +1028,27 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
   auto state_name = [&] {
     return next >= items.size() ? "finished" : playing ? "playing" : "paused";
   };
+  // The summary stream (as teleop-supervisor's, topic "status" on the report endpoint), every
+  // 100 ms of wall time whether playing, paused or finished and held.
+  const std::chrono::milliseconds summary_period{100};
+  Clock::time_point next_summary = Clock::now();
+  auto publish_summary = [&] {
+    const double p = position();
+    summary.advance_to(t0 + static_cast<std::uint64_t>(std::llround(std::max(0.0, p) * 1e9)));
+    v1::SupervisorStatus st;
+    summary.fill(st);
+    v1::ReplayPosition* r = st.mutable_replay();
+    r->set_file(a.file);
+    r->set_state(state_name());
+    r->set_position_s(p);
+    r->set_duration_s(duration_s);
+    r->set_speed(speed);
+    r->set_control_endpoint(a.control);
+    const std::string bytes = st.SerializeAsString();
+    (void)pubs[2].send(zmq::str_buffer("status"),
+                       zmq::send_flags::sndmore | zmq::send_flags::dontwait);
+    (void)pubs[2].send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+  };
   out << fmt::format(
              "replaying {} ({} messages, {:.3f} s) at speed {:g}: master telemetry on {}, slave "
              "telemetry on {}, reports and alarms on {}; control on {}{}\n",
@@ -846,11 +1066,17 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
         if (!a.hold) break;
       }
     }
-    // Sleep until the next message is due or a request or subscription arrives.
-    long timeout_ms = 100;
+    if (Clock::now() >= next_summary) {
+      publish_summary();
+      next_summary = std::max(next_summary + summary_period, Clock::now());
+    }
+    // Sleep until the next message or summary is due or a request or subscription arrives.
+    const auto to_summary =
+        std::chrono::ceil<std::chrono::milliseconds>(next_summary - Clock::now()).count();
+    long timeout_ms = std::clamp(static_cast<long>(to_summary), 0L, 100L);
     if (playing && next < items.size()) {
       const double wait_s = (pos_of(next) - position()) / speed;
-      timeout_ms = std::clamp(static_cast<long>(std::ceil(wait_s * 1e3)), 0L, 100L);
+      timeout_ms = std::clamp(static_cast<long>(std::ceil(wait_s * 1e3)), 0L, timeout_ms);
     }
     std::array<zmq::pollitem_t, 4> poll_items{{{control.handle(), 0, ZMQ_POLLIN, 0},
                                                {pubs[0].handle(), 0, ZMQ_POLLIN, 0},
@@ -918,6 +1144,8 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
       reply = fmt::format("error: {}", e.what());
     }
     (void)control.send(zmq::buffer(reply), zmq::send_flags::dontwait);
+    // A console sees a pause, seek or change of speed at once, not up to 100 ms later.
+    if (verb != "status") next_summary = Clock::now();
   }
   out << status(stopped ? "stopped" : "finished", position()) << "\n";
   (void)err;
@@ -1250,7 +1478,13 @@ std::string replay_usage() {
          "                 say otherwise. Control (REQ/REP, plain text) on --control (default\n"
          "                 tcp://127.0.0.1:5568): pause, resume, seek SECONDS, speed X, status,\n"
          "                 stop; each reply gives the position. --paused starts paused; --hold\n"
-         "                 keeps the control endpoint up at the end until 'stop'\n"
+         "                 keeps the control endpoint up at the end until 'stop'. Ten times a\n"
+         "                 second, playing, paused or held, the report endpoint also carries the\n"
+         "                 supervisor's summary stream ('status'|teleop.v1.SupervisorStatus, "
+         "source\n"
+         "                 \"replay\", the nodes as recorded at the position, the replay's "
+         "state),\n"
+         "                 so 'teleopctl console' shows a replay as it shows a live session\n"
          "  --resimulate   the recorded master motion through the slave side of the law and the\n"
          "                 simulated slave, with the recorded /config plus --set overrides: the\n"
          "                 analyser's verdict and limits, slave tracking error, fixture\n"

@@ -30,6 +30,43 @@ std::optional<v1::SupervisorReply> supervisor_request(const std::string& endpoin
   return reply;
 }
 
+std::pair<std::string, double> parse_setting(const std::string& text) {
+  const auto eq = text.find('=');
+  if (eq == std::string::npos) throw UsageError("expected PATH=VALUE, got '" + text + "'");
+  const std::string path = text.substr(0, eq);
+  static const char* kGains[] = {"kpm", "kps", "kdm", "kds", "kvm", "kvs", "kfm"};
+  bool known =
+      path == "master.fixture.stiffness_N_per_m" || path == "slave.fixture.stiffness_N_per_m";
+  for (const char* g : kGains) known = known || path == std::string("gains.") + g;
+  if (!known) {
+    throw UsageError("cannot change '" + path +
+                     "' live (gains.*, master.fixture.stiffness_N_per_m and "
+                     "slave.fixture.stiffness_N_per_m can be)");
+  }
+  return {path, parse_number(text.substr(eq + 1), path)};
+}
+
+v1::ParameterChangeRequest make_change_request(
+    const std::vector<std::pair<std::string, double>>& settings, const v1::Gains& gains_in_force,
+    bool dry_run, const std::string& requested_by) {
+  v1::ParameterChangeRequest c;
+  c.set_dry_run(dry_run);
+  c.set_requested_by(requested_by);
+  bool any_gain = false;
+  v1::Gains g = gains_in_force;
+  for (const auto& [path, value] : settings) {
+    if (path == "master.fixture.stiffness_N_per_m") c.set_master_fixture_stiffness_n_per_m(value);
+    if (path == "slave.fixture.stiffness_N_per_m") c.set_slave_fixture_stiffness_n_per_m(value);
+    if (path.rfind("gains.", 0) == 0) {
+      any_gain = true;
+      const auto* f = g.GetDescriptor()->FindFieldByName(path.substr(6));
+      g.GetReflection()->SetDouble(&g, f, value);
+    }
+  }
+  if (any_gain) *c.mutable_gains() = g;
+  return c;
+}
+
 std::string set_usage() {
   return "usage: teleopctl set PATH=VALUE... [--dry-run] [--supervisor HOST:PORT] [--key FILE]\n"
          "                    [--server-key KEY|FILE] [--timeout-ms N]\n\n"
@@ -64,23 +101,10 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
     } else {
-      const auto eq = a.find('=');
-      if (eq == std::string::npos) throw UsageError("expected PATH=VALUE, got '" + a + "'");
-      sets.emplace_back(a.substr(0, eq), parse_number(a.substr(eq + 1), a.substr(0, eq)));
+      sets.push_back(parse_setting(a));
     }
   }
   if (sets.empty()) throw UsageError("nothing to set");
-  static const char* kGains[] = {"kpm", "kps", "kdm", "kds", "kvm", "kvs", "kfm"};
-  for (const auto& [path, value] : sets) {
-    bool known =
-        path == "master.fixture.stiffness_N_per_m" || path == "slave.fixture.stiffness_N_per_m";
-    for (const char* g : kGains) known = known || path == std::string("gains.") + g;
-    if (!known) {
-      throw UsageError("cannot change '" + path +
-                       "' live (gains.*, master.fixture.stiffness_N_per_m and "
-                       "slave.fixture.stiffness_N_per_m can be)");
-    }
-  }
   return run_guarded("set", err, [&]() -> int {
     // The gains in force, so that a change of one gain keeps the others.
     v1::SupervisorRequest status;
@@ -91,23 +115,8 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       return kExitNoReply;
     }
     v1::SupervisorRequest req;
-    v1::ParameterChangeRequest* c = req.mutable_change();
-    c->set_dry_run(dry_run);
-    c->set_requested_by("teleopctl set");
-    bool any_gain = false;
-    v1::Gains g = now->status().report().gains();
-    for (const auto& [path, value] : sets) {
-      if (path == "master.fixture.stiffness_N_per_m")
-        c->set_master_fixture_stiffness_n_per_m(value);
-      if (path == "slave.fixture.stiffness_N_per_m") c->set_slave_fixture_stiffness_n_per_m(value);
-      if (path.rfind("gains.", 0) == 0) {
-        any_gain = true;
-        const std::string k = path.substr(6);
-        const auto* f = g.GetDescriptor()->FindFieldByName(k);
-        g.GetReflection()->SetDouble(&g, f, value);
-      }
-    }
-    if (any_gain) *c->mutable_gains() = g;
+    *req.mutable_change() =
+        make_change_request(sets, now->status().report().gains(), dry_run, "teleopctl set");
     const auto reply = supervisor_request(endpoint, req, timeout_ms, key, server_key);
     if (!reply) {
       err << "teleopctl set: no reply from the supervisor at " << endpoint << "\n";
@@ -115,7 +124,7 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     }
     if (!reply->error().empty()) {
       err << "teleopctl set: " << reply->error() << "\n";
-      return kExitError;
+      return reply->refused_read_only() ? kExitRefused : kExitError;
     }
     const v1::ParameterChangeReply& r = reply->change();
     const v1::StabilityReport& p = r.prediction();

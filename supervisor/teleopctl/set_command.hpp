@@ -14,6 +14,13 @@
 namespace teleop::ctl {
 
 [[nodiscard]] std::string set_usage();
+
+// "PATH=VALUE" -> (PATH, VALUE); UsageError naming what is wrong (unknown path, bad number).
+[[nodiscard]] std::pair<std::string, double> parse_setting(const std::string& text);
+// The change request for these settings; `gains_in_force` completes a change of some gains.
+[[nodiscard]] v1::ParameterChangeRequest make_change_request(
+    const std::vector<std::pair<std::string, double>>& settings, const v1::Gains& gains_in_force,
+    bool dry_run, const std::string& requested_by);
 int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 // One request to the supervisor; nullopt when no reply came within timeout_ms.

@@ -617,6 +617,196 @@ TEST(Replay, SpeedRepublishesInOrderAndObeysPauseAndSeek) {
   EXPECT_NE(out.find("finished at 10.000000 s"), std::string::npos) << out;
 }
 
+// --- the summary stream of a replay
+// ---------------------------------------------------------------
+
+// A session file read with the MCAP reader (not through the replay): its log-time span, the
+// telemetry of both nodes and its stability report.
+struct RecordedSession {
+  std::uint64_t first_ns{UINT64_MAX};
+  std::uint64_t last_ns{0};
+  std::vector<std::pair<std::uint64_t, teleop::v1::Telemetry>> master{};
+  std::vector<std::pair<std::uint64_t, teleop::v1::Telemetry>> slave{};
+  std::string report_bytes{};
+  [[nodiscard]] double duration_s() const { return static_cast<double>(last_ns - first_ns) * 1e-9; }
+};
+
+RecordedSession read_session(const std::string& file) {
+  RecordedSession r;
+  const auto reader = teleop::record::McapReader::open(file);
+  reader.for_each_message(teleop::record::Order::kLogTime, [&](const auto& m) {
+    r.first_ns = std::min(r.first_ns, m.log_time_ns);
+    r.last_ns = std::max(r.last_ns, m.log_time_ns);
+    const std::string& topic = m.channel->topic;
+    if (topic == "/master/telemetry" || topic == "/slave/telemetry") {
+      teleop::v1::Telemetry t;
+      EXPECT_TRUE(t.ParseFromArray(m.data.data(), static_cast<int>(m.data.size())));
+      (topic == "/master/telemetry" ? r.master : r.slave).emplace_back(m.log_time_ns, t);
+    }
+    if (topic == "/supervisor/stability") r.report_bytes = m.data;
+  });
+  return r;
+}
+
+// The newest telemetry message logged at or before `log_time_ns`.
+const teleop::v1::Telemetry* newest_at_or_before(
+    const std::vector<std::pair<std::uint64_t, teleop::v1::Telemetry>>& messages,
+    std::uint64_t log_time_ns) {
+  const teleop::v1::Telemetry* newest = nullptr;
+  for (const auto& [t, m] : messages) {
+    if (t <= log_time_ns) newest = &m;
+  }
+  return newest;
+}
+
+// `teleopctl replay FILE --speed X --paused` on free ports, with a control client and a
+// subscriber to the summary stream ("status" on the report endpoint).
+class PausedReplay {
+ public:
+  PausedReplay(const TempDir& dir, const std::string& file, const std::string& speed)
+      : control_ep_(free_endpoint()),
+        report_ep_(free_endpoint()),
+        child_({TELEOPCTL_PATH, "replay", file, "--speed", speed, "--paused", "--control",
+                control_ep_, "--master-telemetry", free_endpoint(), "--slave-telemetry",
+                free_endpoint(), "--report", report_ep_},
+               dir.file("replay.out")) {
+    req_.set(zmq::sockopt::linger, 0);
+    req_.set(zmq::sockopt::rcvtimeo, 10000);
+    req_.set(zmq::sockopt::sndtimeo, 10000);
+    req_.connect(control_ep_);
+    sub_.set(zmq::sockopt::linger, 0);
+    sub_.set(zmq::sockopt::subscribe, "status");
+    sub_.connect(report_ep_);
+  }
+  ~PausedReplay() {
+    if (child_.started()) {
+      (void)ask("stop");
+      (void)child_.wait(10s);
+    }
+  }
+  PausedReplay(const PausedReplay&) = delete;
+  PausedReplay& operator=(const PausedReplay&) = delete;
+
+  [[nodiscard]] bool started() const { return child_.started(); }
+  [[nodiscard]] const std::string& control_endpoint() const { return control_ep_; }
+
+  std::string ask(const std::string& text) {
+    if (!req_.send(zmq::buffer(text), zmq::send_flags::none)) return {};
+    zmq::message_t reply;
+    return req_.recv(reply) ? reply.to_string() : std::string();
+  }
+
+  // The first summary that `accept` takes, within `timeout` (older ones are passed over).
+  template <typename Accept>
+  std::optional<teleop::v1::SupervisorStatus> status_where(Accept accept,
+                                                           std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (true) {
+      const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
+          deadline - std::chrono::steady_clock::now());
+      if (left.count() <= 0) return std::nullopt;
+      std::array<zmq::pollitem_t, 1> item{{{sub_.handle(), 0, ZMQ_POLLIN, 0}}};
+      zmq::poll(item.data(), 1, left);
+      zmq::message_t tag;
+      if (!sub_.recv(tag, zmq::recv_flags::dontwait)) continue;
+      EXPECT_EQ(tag.to_string(), "status");
+      EXPECT_TRUE(sub_.get(zmq::sockopt::rcvmore)) << "a status without its message";
+      zmq::message_t body;
+      if (!sub_.recv(body, zmq::recv_flags::none)) return std::nullopt;
+      teleop::v1::SupervisorStatus st;
+      EXPECT_TRUE(st.ParseFromArray(body.data(), static_cast<int>(body.size())));
+      if (accept(st)) return st;
+    }
+  }
+
+ private:
+  std::string control_ep_;
+  std::string report_ep_;
+  Child child_;
+  zmq::context_t ctx_{1};
+  zmq::socket_t req_{ctx_, zmq::socket_type::req};
+  zmq::socket_t sub_{ctx_, zmq::socket_type::sub};
+};
+
+TEST(ReplayStatusStream, PausedReplayPublishesItsPositionAndTheRecordedReport) {
+  const TempDir dir;
+  const std::string file = simulate_mcap(dir, scene("paddles_slave_fixture_unstable.textproto"),
+                                         "--duration 4", "u.mcap");
+  const RecordedSession rec = read_session(file);
+  ASSERT_FALSE(rec.master.empty());
+  ASSERT_FALSE(rec.report_bytes.empty());
+  teleop::v1::StabilityReport report;
+  ASSERT_TRUE(report.ParseFromString(rec.report_bytes));
+
+  PausedReplay replay(dir, file, "2");
+  ASSERT_TRUE(replay.started());
+  const auto st = replay.status_where([](const auto&) { return true; }, 10s);
+  ASSERT_TRUE(st.has_value()) << "no summary on the report endpoint within 10 s";
+  EXPECT_EQ(st->source(), "replay");
+  EXPECT_FALSE(st->client_may_command());
+  ASSERT_TRUE(st->has_replay());
+  EXPECT_EQ(st->replay().file(), file);
+  EXPECT_EQ(st->replay().state(), "paused");
+  EXPECT_NEAR(st->replay().position_s(), 0.0, 1e-9);
+  EXPECT_NEAR(st->replay().duration_s(), rec.duration_s(), 1e-9);
+  EXPECT_EQ(st->replay().speed(), 2.0);
+  EXPECT_EQ(st->replay().control_endpoint(), replay.control_endpoint());
+  EXPECT_EQ(st->time_ns(), static_cast<std::int64_t>(rec.first_ns));
+  // The report logged at the start is in force from position 0; no alarm was recorded.
+  ASSERT_TRUE(st->has_report());
+  EXPECT_EQ(st->report().SerializeAsString(), rec.report_bytes);
+  EXPECT_EQ(st->recent_alarms_size(), 0);
+  // `simulate` records no supervisor status: no recording to speak of.
+  EXPECT_EQ(st->recording_file(), "");
+
+  // The stream goes on while paused, and the control reply text is unchanged.
+  const auto again =
+      replay.status_where([&](const auto& s) { return s.replay().state() == "paused"; }, 5s);
+  ASSERT_TRUE(again.has_value());
+  EXPECT_NEAR(again->replay().position_s(), 0.0, 1e-9);
+  EXPECT_EQ(parse_status(replay.ask("status")).state, "paused");
+}
+
+TEST(ReplayStatusStream, SeekShowsTheNodesAsRecordedAtThatPosition) {
+  const TempDir dir;
+  // The unstable slave fixture: both paddles move, so each message's last cycle differs.
+  const std::string file = simulate_mcap(dir, scene("paddles_slave_fixture_unstable.textproto"),
+                                         "--duration 4", "u.mcap");
+  const RecordedSession rec = read_session(file);
+  PausedReplay replay(dir, file, "1");
+  ASSERT_TRUE(replay.started());
+  ASSERT_TRUE(replay.status_where([](const auto&) { return true; }, 10s).has_value());
+
+  // Forward to between two messages, then back to exactly a message's log time.
+  for (const double s : {2.51, 1.0}) {
+    SCOPED_TRACE(s);
+    const Status reply = parse_status(replay.ask("seek " + std::to_string(s)));
+    EXPECT_EQ(reply.state, "paused");
+    EXPECT_EQ(reply.position_s, s);
+    const auto st = replay.status_where(
+        [&](const auto& x) { return std::abs(x.replay().position_s() - s) < 1e-9; }, 5s);
+    ASSERT_TRUE(st.has_value()) << "no summary at the new position within 5 s";
+    EXPECT_EQ(st->replay().state(), "paused");
+    const std::uint64_t at_ns = rec.first_ns + static_cast<std::uint64_t>(std::llround(s * 1e9));
+    EXPECT_EQ(st->time_ns(), static_cast<std::int64_t>(at_ns));
+    for (const bool master : {true, false}) {
+      SCOPED_TRACE(master ? "master" : "slave");
+      const teleop::v1::Telemetry* t = newest_at_or_before(master ? rec.master : rec.slave, at_ns);
+      ASSERT_NE(t, nullptr);
+      ASSERT_GT(t->cycles_size(), 0);
+      const teleop::v1::NodeSummary& n = master ? st->master() : st->slave();
+      EXPECT_EQ(n.position_m(), t->cycles(t->cycles_size() - 1).position_m());
+      EXPECT_EQ(n.force_n(), t->cycles(t->cycles_size() - 1).force_n());
+      EXPECT_EQ(n.mode(), t->mode());
+      // Alive: its clock is the recorded one, so a paused replay does not look dead.
+      EXPECT_TRUE(n.alive());
+      EXPECT_EQ(master ? st->master_alive() : st->slave_alive(), true);
+    }
+    // Position 0's report is still in force after a seek back.
+    EXPECT_EQ(st->report().SerializeAsString(), rec.report_bytes);
+  }
+}
+
 // --- identification and resimulation ----------------------------------------------------------
 
 // A band-limited random push (0.5-10 Hz), seeded.

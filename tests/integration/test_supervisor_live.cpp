@@ -11,11 +11,14 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
 
 #include "common/record/mcap_reader.hpp"
+#include "common/transport/zmq_security.hpp"
+#include "common/transport/zmq_sockets.hpp"
 #include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
 #include "tests/integration/node_harness.hpp"
@@ -282,7 +285,7 @@ class ReportTap {
           // "report") is what zmq::buffer("report") sends: counted as a wrong frame, and read
           // on so the rest of the test still shows what the supervisor did.
           std::string_view k = kind.to_string_view();
-          if (k != "alarm" && k != "report") {
+          if (k != "alarm" && k != "report" && k != "status") {
             if (wrong_frames_.size() < 4) wrong_frames_.emplace_back(k);
             ++wrong_frame_count_;
             if (!k.empty() && k.back() == '\0') k.remove_suffix(1);
@@ -294,6 +297,12 @@ class ReportTap {
             v1::StabilityReport r;
             if (r.ParseFromArray(body.data(), static_cast<int>(body.size()))) {
               reports_.push_back(r);
+            }
+          } else if (k == "status") {
+            v1::SupervisorStatus st;
+            if (st.ParseFromArray(body.data(), static_cast<int>(body.size()))) {
+              last_status_ = st;
+              ++statuses_;
             }
           }
         }
@@ -312,7 +321,16 @@ class ReportTap {
     std::lock_guard lock(mutex_);
     return reports_;
   }
-  // Topic frames other than exactly "report" or "alarm", as received (escaped).
+  // The summary stream (topic "status"): how many arrived and the newest.
+  [[nodiscard]] std::size_t statuses() const {
+    std::lock_guard lock(mutex_);
+    return statuses_;
+  }
+  [[nodiscard]] std::optional<v1::SupervisorStatus> last_status() const {
+    std::lock_guard lock(mutex_);
+    return last_status_;
+  }
+  // Topic frames other than exactly "report", "alarm" or "status", as received (escaped).
   [[nodiscard]] std::string wrong_frames() const {
     std::lock_guard lock(mutex_);
     if (wrong_frame_count_ == 0) return "";
@@ -330,6 +348,8 @@ class ReportTap {
   std::atomic<bool> running_{true};
   mutable std::mutex mutex_;
   std::vector<v1::Alarm> alarms_;
+  std::optional<v1::SupervisorStatus> last_status_;
+  std::size_t statuses_{0};
   std::vector<v1::StabilityReport> reports_;
   std::vector<std::string> wrong_frames_;
   std::size_t wrong_frame_count_{0};
@@ -768,7 +788,7 @@ TEST(SupervisorLive, GuardRefusesAStiffnessAboveTheAnalysedLimitAndBothNodesRamp
     EXPECT_LT(a.severity(), v1::Alarm::ACTION) << describe(a);
   }
   EXPECT_EQ(reports.wrong_frames(), "") << "the report endpoint's topic frames must be exactly "
-                                           "\"report\" / \"alarm\"";
+                                           "\"report\" / \"alarm\" / \"status\"";
 }
 
 TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStopsOrNodesDisengage) {
@@ -975,7 +995,7 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
     }
   }
   EXPECT_EQ(reports.wrong_frames(), "") << "the report endpoint's topic frames must be exactly "
-                                           "\"report\" / \"alarm\"";
+                                           "\"report\" / \"alarm\" / \"status\"";
 }
 
 // Without a terminal (issue 6 groundwork): `teleopctl status --json` gives the supervisor's own
@@ -986,6 +1006,7 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   System sys(dir, paddles_config(ports, dir.path() / "sessions", 0.5,
                                  "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }"));
   zmq::context_t ctx(1);
+  ReportTap reports(ctx, tcp(ports.report));
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
   sys.start_supervisor();
@@ -997,19 +1018,59 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
   ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
 
-  const CliResult status =
-      teleopctl("status --json --supervisor 127.0.0.1:" + std::to_string(ports.request), false);
-  ASSERT_EQ(status.exit_code, 0) << status.out;
-  const nlohmann::json j = nlohmann::json::parse(status.out);
-  const auto direct = supervisor_status(ctx, ports.request);
-  ASSERT_TRUE(direct.has_value());
-  EXPECT_EQ(j["report"]["verdict"], direct->report().verdict());
-  EXPECT_DOUBLE_EQ(j["report"]["minDampingRatio"].get<double>(),
-                   direct->report().min_damping_ratio());
-  EXPECT_DOUBLE_EQ(j["report"]["maxStableSlaveStiffnessNPerM"].get<double>(),
-                   direct->report().max_stable_slave_stiffness_n_per_m());
+  // status --json against what the supervisor itself published on its report stream (its
+  // newest StabilityReport), against `teleopctl analyze` for the round trip it assumed (an
+  // independent path to the limit), and against the nodes' own telemetry.
+  // (The report published at start may precede this subscription; the summary stream carries
+  // the report in force ten times a second.)
+  ASSERT_TRUE(eventually([&] { return reports.statuses() >= 3; })) << sys.logs();
+  nlohmann::json j;
+  v1::StabilityReport published;
+  for (int attempt = 0; attempt < 5; ++attempt) {  // the model may change between the two reads
+    const std::size_t before = reports.reports().size();
+    const CliResult status =
+        teleopctl("status --json --supervisor 127.0.0.1:" + std::to_string(ports.request), false);
+    ASSERT_EQ(status.exit_code, 0) << status.out;
+    j = nlohmann::json::parse(status.out);
+    const std::size_t seen = reports.statuses();
+    ASSERT_TRUE(eventually([&] { return reports.statuses() > seen; }));
+    published = reports.last_status()->report();
+    if (reports.reports().size() == before) break;
+  }
+  EXPECT_EQ(j["report"]["verdict"], published.verdict());
+  EXPECT_DOUBLE_EQ(j["report"]["minDampingRatio"].get<double>(), published.min_damping_ratio());
+  EXPECT_EQ(j["report"]["roundTripSamples"].get<int>(), published.round_trip_samples());
+  const double json_limit = j["report"]["maxStableSlaveStiffnessNPerM"].get<double>();
+  EXPECT_DOUBLE_EQ(json_limit, published.max_stable_slave_stiffness_n_per_m());
+  const CliResult analyze =
+      teleopctl("analyze " + sys.config().string() + " --max-stiffness slave --json --set " +
+                    "round_trip_delay_samples=" + std::to_string(published.round_trip_samples()),
+                false);
+  ASSERT_EQ(analyze.exit_code, 0) << analyze.out;
+  const double analyzed =
+      nlohmann::json::parse(analyze.out)["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
+  EXPECT_NEAR(json_limit, analyzed, 1e-3 * analyzed);
   EXPECT_EQ(j["masterAlive"], true);
   EXPECT_EQ(j["slaveAlive"], true);
+  // The node summaries: the mode each node reports, its loop at the configured 1 kHz (the
+  // measured rate, to 2 %), the fixture in force and a position within what the node sent.
+  EXPECT_EQ(j["master"]["mode"], "ENGAGED") << j.dump();
+  EXPECT_EQ(j["slave"]["mode"], "ENGAGED") << j.dump();
+  EXPECT_NEAR(j["master"]["loopRateHz"].get<double>(), 1000.0, 20.0);
+  EXPECT_NEAR(j["slave"]["loopRateHz"].get<double>(), 1000.0, 20.0);
+  EXPECT_DOUBLE_EQ(j["slave"]["active"]["slaveFixtureStiffnessNPerM"].get<double>(),
+                   st.last()->active().slave_fixture_stiffness_n_per_m());
+  const std::vector<v1::CycleRecord> cycles = mt.cycles();
+  const double x = j["master"]["positionM"].get<double>();
+  EXPECT_TRUE(std::any_of(cycles.begin(), cycles.end(),
+                          [&](const v1::CycleRecord& c) { return c.position_m() == x; }))
+      << "the status's master position " << x << " is not one the master sent";
+  EXPECT_EQ(j["master"]["positionTraceM"]["min"].size(),
+            j["master"]["positionTraceM"]["max"].size());
+  // The newest cycle is in the trace's newest bucket (floats there).
+  ASSERT_GE(j["master"]["positionTraceM"]["min"].size(), 1u);
+  EXPECT_LE(j["master"]["positionTraceM"]["min"].back().get<float>(), static_cast<float>(x));
+  EXPECT_GE(j["master"]["positionTraceM"]["max"].back().get<float>(), static_cast<float>(x));
 
   const CliResult estop = teleopctl("estop " + sys.config().string());
   EXPECT_EQ(estop.exit_code, 0) << estop.out;
@@ -1021,6 +1082,198 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
       << estop.out;
   ASSERT_TRUE(mt.wait_for_mode(v1::SAFE));
   ASSERT_TRUE(st.wait_for_mode(v1::SAFE));
+}
+
+// One request to the supervisor over CURVE with this client's key file (empty: plaintext).
+std::optional<v1::SupervisorReply> request_as(zmq::context_t& ctx, int port,
+                                              const v1::SupervisorRequest& req,
+                                              const fs::path& key_file = {},
+                                              const std::string& server_key = "") {
+  transport::LinkSecurity sec;
+  if (!key_file.empty()) sec.own = transport::load_secret_key_file(key_file.string());
+  if (!server_key.empty()) sec.server_public_key = server_key;
+  zmq::socket_t client = transport::make_command_client(ctx, tcp(port), sec, 3000ms);
+  const auto bytes = transport::request_reply(client, req.SerializeAsString());
+  if (!bytes) return std::nullopt;
+  v1::SupervisorReply r;
+  if (!r.ParseFromString(*bytes)) return std::nullopt;
+  return r;
+}
+
+std::string public_key(const fs::path& pub) { return transport::load_public_key(pub.string()); }
+
+TEST(SupervisorLive, ReadOnlyConsoleKeyMayWatchPredictAndEstopButChangesNothing) {
+  TempDir dir;
+  SystemPorts ports;
+  for (const char* name : {"master", "slave", "supervisor", "console", "viewer", "stranger"}) {
+    const CliResult k = teleopctl("keygen " + (dir.path() / name).string());
+    ASSERT_EQ(k.exit_code, 0) << k.out;
+  }
+  auto pub = [&](const char* name) {
+    return public_key(dir.path() / (std::string(name) + ".pub"));
+  };
+  auto key = [&](const char* name) { return (dir.path() / (std::string(name) + ".key")).string(); };
+  const std::string viewer_pub = pub("viewer");
+  // Every endpoint keyed (a keyed supervisor talks CURVE to keyed nodes): the console's key may
+  // command, the viewer's is read-only.
+  const std::string security =
+      "security { master_public_key: \"" + pub("master") + "\" slave_public_key: \"" +
+      pub("slave") + "\" supervisor_public_key: \"" + pub("supervisor") +
+      "\" client_public_keys: \"" + pub("supervisor") + "\" client_public_keys: \"" +
+      pub("console") + "\" read_only_client_public_keys: \"" + viewer_pub + "\" }\n";
+  std::string text =
+      paddles_config(ports, dir.path() / "sessions", 0.5,
+                     "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }", security);
+  for (const char* node : {"master", "slave"}) {
+    const std::size_t at = text.find("node { ", text.find(std::string(node) + " {"));
+    ASSERT_NE(at, std::string::npos);
+    text.insert(at + 7, "secret_key_file: \"" + key(node) + "\" ");
+  }
+  text = std::regex_replace(text, std::regex("supervisor \\{"),
+                            "supervisor { secret_key_file: \"" + key("supervisor") + "\"");
+  System sys(dir, text);
+  zmq::context_t ctx(1);
+  auto as_console = [&](const char* server) {
+    const transport::CurveKeyPair pair = transport::load_secret_key_file(key("console"));
+    const std::string server_pub = pub(server);
+    return [pair, server_pub](zmq::socket_t& s) {
+      s.set(zmq::sockopt::curve_serverkey, server_pub);
+      s.set(zmq::sockopt::curve_publickey, pair.public_z85);
+      s.set(zmq::sockopt::curve_secretkey, pair.secret_z85);
+    };
+  };
+  TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry), as_console("master"));
+  TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry), as_console("slave"));
+  sys.start_supervisor();
+  sys.start_nodes();
+  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
+  for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+    for (const auto& [port, node] : {std::pair{ports.nodes.master_command, "master"},
+                                     std::pair{ports.nodes.slave_command, "slave"}}) {
+      const auto r = send_command(ctx, tcp(port), kind, as_console(node));
+      ASSERT_TRUE(r.has_value() && r->ok()) << sys.logs();
+    }
+  }
+  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  const std::string sup_pub = pub("supervisor");
+
+  const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(ports.request) +
+                          " --server-key " + (dir.path() / "supervisor.pub").string();
+  const std::string viewer = " --key " + key("viewer");
+  const std::string console = " --key " + key("console");
+  // Both keys may watch; only the console's may command.
+  CliResult r = teleopctl("status --json" + sup + viewer, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out << sys.logs();
+  EXPECT_EQ(nlohmann::json::parse(r.out)["clientMayCommand"], false) << r.out;
+  r = teleopctl("status --json" + sup + console, false);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["clientMayCommand"], true) << r.out;
+  // A key the supervisor does not list gets no answer at all.
+  r = teleopctl("status --timeout-ms 1500" + sup + " --key " + key("stranger"));
+  EXPECT_EQ(r.exit_code, 4) << r.out;
+
+  // The viewer's change is refused as read-only (exit 3) and nothing changes; its dry run is
+  // answered (a prediction changes nothing).
+  r = teleopctl("set slave.fixture.stiffness_N_per_m=500" + sup + viewer);
+  EXPECT_EQ(r.exit_code, 3) << r.out;
+  EXPECT_NE(r.out.find("read-only"), std::string::npos) << r.out;
+  r = teleopctl("set slave.fixture.stiffness_N_per_m=500 --dry-run" + sup + viewer);
+  EXPECT_EQ(r.exit_code, 0) << r.out;
+  v1::SupervisorRequest engage_req;
+  engage_req.mutable_node_command()->set_kind(v1::NodeCommand::DISENGAGE);
+  auto reply = request_as(ctx, ports.request, engage_req, dir.path() / "viewer.key", sup_pub);
+  ASSERT_TRUE(reply.has_value());
+  EXPECT_TRUE(reply->refused_read_only()) << reply->DebugString();
+  EXPECT_EQ(reply->node_command().outcomes_size(), 0);
+  // Still engaged, still the configured stiffness, over the next 0.5 s of the nodes' cycles.
+  const std::size_t seen = mt.cycles().size();
+  ASSERT_TRUE(mt.wait_for([&](const v1::Telemetry&) { return mt.cycles().size() > seen + 500; }));
+  const std::vector<v1::CycleRecord> after = mt.cycles();
+  for (std::size_t i = seen; i < after.size(); ++i) ASSERT_EQ(after[i].mode(), v1::ENGAGED) << i;
+  EXPECT_DOUBLE_EQ(st.last()->active().slave_fixture_stiffness_n_per_m(), 1000.0);
+
+  // The viewer's e-stop goes through: the supervisor forwards it to both nodes and each
+  // confirms safe; the nodes' own telemetry says so.
+  v1::SupervisorRequest estop;
+  estop.mutable_node_command()->set_kind(v1::NodeCommand::ESTOP);
+  estop.mutable_node_command()->set_target("master");  // an e-stop reaches both regardless
+  reply = request_as(ctx, ports.request, estop, dir.path() / "viewer.key", sup_pub);
+  ASSERT_TRUE(reply.has_value());
+  ASSERT_EQ(reply->error(), "");
+  ASSERT_EQ(reply->node_command().outcomes_size(), 2) << reply->DebugString();
+  for (const v1::NodeCommandOutcome& o : reply->node_command().outcomes()) {
+    EXPECT_TRUE(o.replied()) << o.node();
+    EXPECT_EQ(o.reply().mode(), v1::SAFE) << o.node();
+  }
+  EXPECT_TRUE(mt.wait_for_mode(v1::SAFE));
+  EXPECT_TRUE(st.wait_for_mode(v1::SAFE));
+  // The refusal is in the supervisor's log with the key.
+  EXPECT_NE(sys.supervisor().log().find(viewer_pub), std::string::npos) << sys.logs();
+}
+
+TEST(SupervisorLive, ForwardedCommandsReachBothNodesAndRecordingStopsAndStartsANewFile) {
+  TempDir dir;
+  SystemPorts ports;
+  System sys(dir, paddles_config(ports, dir.path() / "sessions", 0.5));
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
+  TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
+  sys.start_supervisor();
+  sys.start_nodes();
+  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
+  // Arm and engage through the supervisor: each node answers, then both engage.
+  for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+    v1::SupervisorRequest req;
+    req.mutable_node_command()->set_kind(kind);
+    const auto reply = request_as(ctx, ports.request, req);
+    ASSERT_TRUE(reply.has_value());
+    ASSERT_EQ(reply->error(), "");
+    ASSERT_EQ(reply->node_command().outcomes_size(), 2);
+    for (const v1::NodeCommandOutcome& o : reply->node_command().outcomes()) {
+      EXPECT_TRUE(o.replied() && o.reply().ok()) << reply->DebugString();
+    }
+  }
+  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  // A retune is not a state command: refused with the reason, nothing sent.
+  v1::SupervisorRequest retune;
+  retune.mutable_node_command()->set_kind(v1::NodeCommand::RETUNE);
+  auto reply = request_as(ctx, ports.request, retune);
+  ASSERT_TRUE(reply.has_value());
+  EXPECT_NE(reply->error().find("parameter change"), std::string::npos) << reply->error();
+
+  // Recording: stop closes the file (summary and footer: McapReader opens it without
+  // recovery); start opens a new one, which fills.
+  auto status = supervisor_status(ctx, ports.request);
+  ASSERT_TRUE(status.has_value());
+  const std::string first = status->recording_file();
+  ASSERT_FALSE(first.empty());
+  v1::SupervisorRequest off;
+  off.mutable_recording()->set_record(false);
+  reply = request_as(ctx, ports.request, off);
+  ASSERT_TRUE(reply.has_value());
+  ASSERT_EQ(reply->error(), "");
+  EXPECT_EQ(reply->status().recording_file(), "");
+  const record::McapReader closed = record::McapReader::open(first);
+  EXPECT_GT(closed.messages().size(), 0u);
+  v1::SupervisorRequest on;
+  on.mutable_recording()->set_record(true);
+  reply = request_as(ctx, ports.request, on);
+  ASSERT_TRUE(reply.has_value());
+  ASSERT_EQ(reply->error(), "");
+  const std::string second = reply->status().recording_file();
+  EXPECT_NE(second, first);
+  EXPECT_TRUE(fs::exists(second)) << second;
+  reply = request_as(ctx, ports.request, on);
+  ASSERT_TRUE(reply.has_value());
+  EXPECT_NE(reply->error().find("already recording"), std::string::npos) << reply->error();
+  ASSERT_TRUE(eventually([&] {
+    const auto s = supervisor_status(ctx, ports.request);
+    return s && s->recorded_messages() > 100 && s->recording_bytes() > 0;
+  })) << sys.logs();
 }
 
 }  // namespace

@@ -1,0 +1,353 @@
+#include "supervisor/teleopctl/console_view.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+namespace teleop::ctl {
+namespace {
+
+constexpr int kMessageRows = 3;
+
+std::string fit(std::string s, int cols) {
+  if (cols <= 0) return {};
+  if (s.size() > static_cast<std::size_t>(cols)) s.resize(static_cast<std::size_t>(cols));
+  return s;
+}
+
+std::string pad(std::string s, std::size_t width) {
+  if (s.size() > width) s.resize(width);
+  s.append(width - s.size(), ' ');
+  return s;
+}
+
+std::string mode_name(const v1::NodeSummary& n) {
+  if (n.mode() == v1::NODE_MODE_UNSPECIFIED && !n.alive()) return "-";
+  const std::string name = v1::NodeMode_Name(n.mode());
+  return n.alive() ? name : "SILENT";
+}
+
+std::string rt_text(const v1::RtStatus& rt) {
+  // Compact: FIFO priority (or OTHER), "lock" for locked memory, "c<N>" for a pinned CPU,
+  // "!<N>" for settings the kernel refused.
+  std::string s = rt.fifo_priority() > 0 ? fmt::format("FIFO{}", rt.fifo_priority()) : "OTHER";
+  if (rt.memory_locked()) s += " lock";
+  if (rt.cpu() >= 0 && rt.fifo_priority() > 0) s += fmt::format(" c{}", rt.cpu());
+  if (rt.refused_size() > 0) s += fmt::format(" !{}", rt.refused_size());
+  return s;
+}
+
+std::string node_row(const char* name, const v1::NodeSummary& n) {
+  if (n.mode() == v1::NODE_MODE_UNSPECIFIED && !n.alive() && n.loop().cycles() == 0) {
+    return fmt::format("{:<6} -  (no telemetry yet)", name);
+  }
+  std::string row =
+      fmt::format("{:<6} {:<9} {:>6.1f} {:>5.0f}us {:>5}/{:<4} {:<14}", name, mode_name(n),
+                  n.loop_rate_hz(), static_cast<double>(n.loop().wakeup_p99_ns()) * 1e-3,
+                  n.loop().overruns(), n.overruns_last_minute(), pad(rt_text(n.rt()), 14));
+  if (n.mode() == v1::SAFE || n.mode() == v1::FAULT || !n.alive()) {
+    row += " " + n.mode_reason();
+  } else {
+    row += fmt::format(" x{:+6.2f}mm F{:+5.2f}N", n.position_m() * 1e3, n.force_n());
+  }
+  return row;
+}
+
+std::string link_row(const v1::SupervisorStatus& s) {
+  const v1::LinkStats& m = s.master().link();
+  const v1::LinkStats& l = s.slave().link();
+  return fmt::format(
+      "link   rtt {:.2f} p99 {:.2f} ms {} smp  loss m{:.2f}% s{:.2f}%  age m{:.1f} s{:.1f} ms",
+      static_cast<double>(m.round_trip_ns()) * 1e-6,
+      static_cast<double>(std::max(m.round_trip_p99_ns(), l.round_trip_p99_ns())) * 1e-6,
+      std::max(m.round_trip_samples(), l.round_trip_samples()), 100.0 * m.loss_fraction(),
+      100.0 * l.loss_fraction(), static_cast<double>(m.peer_age_ns()) * 1e-6,
+      static_cast<double>(l.peer_age_ns()) * 1e-6);
+}
+
+std::string fixture_row(const char* side, double configured, bool has_max, double maximum,
+                        double margin, int cols) {
+  if (!(configured > 0.0)) return fmt::format("{:<6} fixture none", side);
+  if (!has_max) return fmt::format("{:<6} fixture {:.0f} N/m (no finite limit)", side, configured);
+  const std::string head =
+      fmt::format("{:<6} fixture {:>6.0f} of {:>6.0f} N/m ", side, configured, maximum);
+  const std::string tail = fmt::format(" margin {:>4.0f}%", 100.0 * margin);
+  const int width = std::max(10, cols - static_cast<int>(head.size() + tail.size()));
+  return head + margin_bar(configured, maximum, width) + tail;
+}
+
+std::string short_severity(v1::Alarm::Severity s) {
+  switch (s) {
+    case v1::Alarm::INFO:
+      return "INFO";
+    case v1::Alarm::WARNING:
+      return "WARN";
+    case v1::Alarm::ACTION:
+      return "ACTN";
+    case v1::Alarm::CRITICAL:
+      return "CRIT";
+    default:
+      return "?";
+  }
+}
+
+std::string alarm_row(const v1::Alarm& a, std::int64_t now_ns) {
+  std::string ev;
+  for (const v1::Evidence& e : a.evidence()) {
+    ev += fmt::format(" {}={:.3g}{}", e.name(), e.value(), e.unit());
+  }
+  return fmt::format("{:>7.1f}s {} {} {}: {}{}{}",
+                     -static_cast<double>(now_ns - a.time_ns()) * 1e-9,
+                     short_severity(a.severity()), a.kind(), a.side(), a.message(), ev,
+                     a.action().empty() ? "" : " -> " + a.action());
+}
+
+double trace_lo(const v1::Trace& t, int width) {
+  double lo = INFINITY;
+  const int n = t.min_size();
+  for (int i = std::max(0, n - width); i < n; ++i) lo = std::min(lo, static_cast<double>(t.min(i)));
+  return lo;
+}
+
+double trace_hi(const v1::Trace& t, int width) {
+  double hi = -INFINITY;
+  const int n = t.max_size();
+  for (int i = std::max(0, n - width); i < n; ++i) hi = std::max(hi, static_cast<double>(t.max(i)));
+  return hi;
+}
+
+std::string plot_title(const char* name, const v1::Trace& a, const v1::Trace& b, int width,
+                       double scale) {
+  const double lo = std::min(trace_lo(a, width), trace_lo(b, width)) * scale;
+  const double hi = std::max(trace_hi(a, width), trace_hi(b, width)) * scale;
+  if (!std::isfinite(lo) || !std::isfinite(hi)) return fit(name, width);
+  return fit(fmt::format("{} {:.3g}..{:.3g}", name, lo, hi), width);
+}
+
+std::vector<std::string> help_lines(bool replay) {
+  if (replay) {
+    return {
+        "Watching a replay (teleopctl replay FILE --speed X): the session as the",
+        "supervisor saw it; nothing here commands a robot.",
+        "",
+        "  space   pause / resume",
+        "  , .     seek back / forward 5 s     < >  seek back / forward 30 s",
+        "  [ ]     speed halved / doubled      0    back to the start",
+        "  g       go to a time (s): Enter sends it, Esc cancels",
+        "  ?       this help (any key closes)  q    quit (the replay goes on)",
+    };
+  }
+  return {
+      "Commands go to the supervisor, which forwards them to both nodes; each node's",
+      "answer is shown below, and the node rows then show the state they report.",
+      "",
+      "  x   E-STOP both nodes: always available, straight to the nodes when the",
+      "      supervisor does not answer. Leaving safe: l clear, a arm, e engage.",
+      "  a   arm            e  engage (aligning, then engaged)   d  disengage",
+      "  c   clutch         u  unclutch                          l  clear a stop",
+      "  s   set gains or a fixture stiffness, e.g. gains.kps=2000 or",
+      "      slave.fixture.stiffness_N_per_m=800: the supervisor's prediction comes",
+      "      first; y applies it, any other key cancels. Unstable is refused.",
+      "  r   start / stop recording the session",
+      "  ?   this help (any key closes)   q  quit the console (the system goes on)",
+      "",
+      "A read-only console (read-only key or --read-only) can watch and e-stop only.",
+  };
+}
+
+}  // namespace
+
+std::string margin_bar(double configured, double maximum, int width) {
+  const int inner = std::max(3, width - 2);
+  std::string bar(static_cast<std::size_t>(inner), '.');
+  const double ratio = maximum > 0.0 ? configured / maximum : INFINITY;
+  if (ratio > 1.0) {
+    std::fill(bar.begin(), bar.end(), '#');
+    bar.back() = '!';
+  } else {
+    const int filled = static_cast<int>(std::lround(std::max(0.0, ratio) * (inner - 1)));
+    std::fill(bar.begin(), bar.begin() + filled, '#');
+    bar.back() = '|';
+  }
+  return "[" + bar + "]";
+}
+
+std::vector<std::string> render_plot(const v1::Trace& a, const v1::Trace& b, int rows, int width,
+                                     double scale) {
+  std::vector<std::string> out(static_cast<std::size_t>(std::max(0, rows)),
+                               std::string(static_cast<std::size_t>(std::max(0, width)), ' '));
+  if (rows <= 0 || width <= 0) return out;
+  double lo = std::min(trace_lo(a, width), trace_lo(b, width)) * scale;
+  double hi = std::max(trace_hi(a, width), trace_hi(b, width)) * scale;
+  if (!std::isfinite(lo) || !std::isfinite(hi)) return out;
+  if (hi - lo < 1e-12 * std::max(1.0, std::abs(hi))) {
+    lo -= 0.5;
+    hi += 0.5;
+  }
+  auto row_of = [&](double v) {
+    const double r = (hi - v) / (hi - lo) * (rows - 1);
+    return std::clamp(static_cast<int>(std::lround(r)), 0, rows - 1);
+  };
+  for (const auto& [trace, mark] : {std::pair{&a, 'm'}, std::pair{&b, 's'}}) {
+    const int n = std::min(trace->min_size(), trace->max_size());
+    for (int i = std::max(0, n - width); i < n; ++i) {
+      const int col = width - (n - i);
+      const int top = row_of(static_cast<double>(trace->max(i)) * scale);
+      const int bottom = row_of(static_cast<double>(trace->min(i)) * scale);
+      for (int r = top; r <= bottom; ++r) {
+        char& c = out[static_cast<std::size_t>(r)][static_cast<std::size_t>(col)];
+        c = (c == ' ' || c == mark) ? mark : '#';
+      }
+    }
+  }
+  return out;
+}
+
+std::vector<std::string> render_console(const ConsoleView& view, int rows, int cols) {
+  std::vector<std::string> lines;
+  const bool have = view.status.has_value();
+  const v1::SupervisorStatus empty;
+  const v1::SupervisorStatus& s = have ? *view.status : empty;
+
+  // Header.
+  std::string header;
+  if (view.replay) {
+    const v1::ReplayPosition& r = s.replay();
+    header = fmt::format("TELEOP REPLAY  {} {:.1f}/{:.1f} s  x{:g}  {}",
+                         r.state().empty() ? "?" : r.state(), r.position_s(), r.duration_s(),
+                         r.speed(), std::filesystem::path(r.file()).filename().string());
+  } else {
+    header = fmt::format("TELEOP CONSOLE  live {}  [{}]", view.source,
+                         view.read_only ? "read-only" : "read-write");
+  }
+  if (!have) {
+    header += "  WAITING FOR THE SUMMARY";
+  } else if (view.status_age_ns > 1'000'000'000) {
+    header +=
+        fmt::format("  NO SUMMARY FOR {:.1f} s", static_cast<double>(view.status_age_ns) * 1e-9);
+  }
+  const std::string clock = view.clock.empty() ? "" : " " + view.clock;
+  if (static_cast<int>(header.size() + clock.size()) < cols) {
+    header = pad(header, static_cast<std::size_t>(cols) - clock.size()) + clock;
+  }
+  lines.push_back(header);
+
+  if (view.help) {
+    lines.emplace_back("");
+    for (const std::string& l : help_lines(view.replay)) lines.push_back(l);
+  } else {
+    lines.push_back(fmt::format("{:<6} {:<9} {:>6} {:>7} {:>10} {:<14} {}", "node", "state",
+                                "rate Hz", "wake p99", "overruns/1m", "RT", "now"));
+    lines.push_back(node_row("master", s.master()));
+    lines.push_back(node_row("slave", s.slave()));
+    lines.push_back(link_row(s));
+    // Plots: positions, forces, penetration; 'm' master, 's' slave.
+    const int plot_rows = 4;
+    const int width = std::max(8, (cols - 2) / 3);
+    struct Panel {
+      const char* name;
+      const v1::Trace* a;
+      const v1::Trace* b;
+      double scale;
+    };
+    const Panel panels[] = {
+        {"x mm", &s.master().position_trace_m(), &s.slave().position_trace_m(), 1e3},
+        {"F N", &s.master().force_trace_n(), &s.slave().force_trace_n(), 1.0},
+        {"pen mm", &s.master().penetration_trace_m(), &s.slave().penetration_trace_m(), 1e3},
+    };
+    std::string titles;
+    std::vector<std::string> plot(plot_rows);
+    for (const Panel& p : panels) {
+      const std::string sep = titles.empty() ? "" : " ";
+      titles += sep + pad(plot_title(p.name, *p.a, *p.b, width, p.scale),
+                          static_cast<std::size_t>(width));
+      const std::vector<std::string> rows_of = render_plot(*p.a, *p.b, plot_rows, width, p.scale);
+      for (int r = 0; r < plot_rows; ++r) {
+        plot[static_cast<std::size_t>(r)] += sep + rows_of[static_cast<std::size_t>(r)];
+      }
+    }
+    lines.push_back(titles);
+    for (const std::string& l : plot) lines.push_back(l);
+
+    // Stability.
+    const v1::StabilityReport& r = s.report();
+    if (r.verdict().empty()) {
+      lines.emplace_back("stability: no report yet");
+    } else {
+      std::string verdict = r.verdict();
+      std::transform(verdict.begin(), verdict.end(), verdict.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+      lines.push_back(fmt::format(
+          "stability {}  zeta min {:.4f} (required {:.4f})  model: rtt {} smp, {:.1f} Hz", verdict,
+          r.min_damping_ratio(), r.required_damping_ratio(), r.round_trip_samples(),
+          r.sample_rate_hz()));
+    }
+    lines.push_back(fixture_row("slave", r.slave_fixture_stiffness_n_per_m(),
+                                r.has_max_stable_slave_stiffness_n_per_m(),
+                                r.max_stable_slave_stiffness_n_per_m(), r.slave_margin(), cols));
+    lines.push_back(fixture_row("master", r.master_fixture_stiffness_n_per_m(),
+                                r.has_max_stable_master_stiffness_n_per_m(),
+                                r.max_stable_master_stiffness_n_per_m(), r.master_margin(), cols));
+    auto osc = [](const v1::NodeSummary& n) {
+      return fmt::format(
+          "{:.3f}{}", n.oscillation_amplitude_m() * 1e3,
+          n.oscillating() ? fmt::format(" OSC@{:.0f}Hz", n.oscillation_frequency_hz()) : "");
+    };
+    lines.push_back(fmt::format(
+        "monitors  oscillation m {} s {} mm  passivity m {:+.4f} s {:+.4f} J", osc(s.master()),
+        osc(s.slave()), s.master().passivity_energy_j(), s.slave().passivity_energy_j()));
+    if (s.recording_file().empty()) {
+      lines.push_back(
+          fmt::format("recorder  off{}",
+                      s.record_dir().empty() ? "" : " (r starts one in " + s.record_dir() + ")"));
+    } else {
+      lines.push_back(fmt::format("recorder  {}  {:.1f} MB  {} msgs  {} drops",
+                                  std::filesystem::path(s.recording_file()).filename().string(),
+                                  static_cast<double>(s.recording_bytes()) / 1e6,
+                                  s.recorded_messages(), s.recording_drops()));
+    }
+    lines.push_back(fmt::format("alarms (newest first): {}", s.recent_alarms_size()));
+    // Alarms fill what is left above the message lines and the key line.
+    const int room = std::max(0, rows - static_cast<int>(lines.size()) - kMessageRows - 1);
+    for (int i = 0; i < room; ++i) {
+      lines.push_back(i < s.recent_alarms_size() ? alarm_row(s.recent_alarms(i), s.time_ns())
+                                                 : std::string());
+    }
+  }
+  // Messages (the newest at the bottom, wrapped), the prompt, the keys.
+  while (static_cast<int>(lines.size()) < rows - kMessageRows - 1) lines.emplace_back("");
+  std::vector<std::string> area;
+  if (!view.prompt.empty()) area.push_back(view.prompt);
+  const std::size_t width = static_cast<std::size_t>(std::max(1, cols));
+  for (auto m = view.messages.rbegin();
+       m != view.messages.rend() && static_cast<int>(area.size()) < kMessageRows; ++m) {
+    std::vector<std::string> wrapped;
+    for (std::size_t i = 0; i < m->size(); i += width) wrapped.push_back(m->substr(i, width));
+    if (wrapped.empty()) wrapped.emplace_back();
+    for (auto w = wrapped.rbegin();
+         w != wrapped.rend() && static_cast<int>(area.size()) < kMessageRows; ++w) {
+      area.push_back(*w);
+    }
+  }
+  while (static_cast<int>(area.size()) < kMessageRows) area.emplace_back();
+  for (auto l = area.rbegin(); l != area.rend(); ++l) lines.push_back(*l);
+  std::string keys;
+  if (view.replay) {
+    keys = "space pause/resume  , . seek 5s  < > 30s  [ ] speed  0 start  g go to  ? q quit";
+  } else if (view.read_only) {
+    keys = "READ-ONLY  x E-STOP  ? help  q quit";
+  } else {
+    keys = "x E-STOP a arm e engage d disengage c/u clutch l clear s set r rec ? help q quit";
+  }
+  lines.push_back(keys);
+  // Fit: at most `rows` lines (the key line kept last), each at most `cols` characters.
+  if (static_cast<int>(lines.size()) > rows && rows > 0) {
+    lines.erase(lines.begin() + (rows - 1), lines.end() - 1);
+  }
+  for (std::string& l : lines) l = fit(l, cols);
+  return lines;
+}
+
+}  // namespace teleop::ctl

@@ -1,0 +1,607 @@
+// The operator console `teleopctl console` (issue 6) in a real terminal: tmux on a private
+// server socket runs it at 80x24 against the real master, slave and supervisor processes on
+// free loopback ports (or against `teleopctl replay --speed 1`), keys go in with send-keys
+// and the screen comes back with capture-pane. Every check of the screen polls it until the
+// condition holds, bounded only against a hang; what the console claims is checked against
+// the nodes' own telemetry and against `teleopctl analyze`, an independent path.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <regex>
+
+#include "teleop/v1/supervisor.pb.h"
+#include "tests/integration/node_harness.hpp"
+
+namespace teleop::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr auto kScreenBound = 20s;
+
+struct CliResult {
+  int exit_code{-1};
+  std::string out{};
+};
+
+// A shell command line; stdout captured (stderr too when `merge_stderr`).
+CliResult run(const std::string& cmd, bool merge_stderr = true) {
+  CliResult r;
+  FILE* pipe = popen((cmd + (merge_stderr ? " 2>&1" : " 2>/dev/null")).c_str(), "r");
+  if (pipe == nullptr) return r;
+  std::array<char, 4096> buf{};
+  std::size_t n = 0;
+  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
+  const int status = pclose(pipe);
+  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+CliResult teleopctl(const std::string& args, bool merge_stderr = true) {
+  return run(std::string(TELEOPCTL_PATH) + " " + args, merge_stderr);
+}
+
+std::string sh_quote(const std::string& s) {
+  std::string q = "'";
+  for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+// A number as text that parses back to the same double.
+std::string exact(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.17g", v);
+  return buf;
+}
+
+// What the console prints for a stiffness ({:.0f}).
+std::string whole(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.0f", v);
+  return buf;
+}
+
+bool have_tmux() { return run("tmux -V").exit_code == 0; }
+
+constexpr const char* kNoTmux =
+    "tmux is missing: the console tests drive teleopctl console in a real terminal through "
+    "tmux. Run scripts/install-deps.sh (it installs tmux).";
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::stringstream ss(text);
+  std::string line;
+  while (std::getline(ss, line)) lines.push_back(line);
+  return lines;
+}
+
+bool has_line_starting(const std::string& screen, const std::string& prefix) {
+  for (const std::string& l : lines_of(screen)) {
+    if (l.rfind(prefix, 0) == 0) return true;
+  }
+  return false;
+}
+
+std::string line_starting(const std::string& screen, const std::string& prefix) {
+  for (const std::string& l : lines_of(screen)) {
+    if (l.rfind(prefix, 0) == 0) return l;
+  }
+  return {};
+}
+
+// A command in an 80x24 terminal of a tmux server of its own; the server (and so the
+// command) is killed when this goes. When the command exits the pane says so and stays.
+class Terminal {
+ public:
+  explicit Terminal(const std::string& command)
+      : socket_("teleop-test-" + std::to_string(::getpid()) + "-" + std::to_string(next_id())) {
+    const std::string wrapped = command + "; echo \"[console exited with status $?]\"; sleep 3600";
+    const CliResult r = run(tmux() + " new-session -d -x 80 -y 24 " + sh_quote(wrapped));
+    started_ = r.exit_code == 0;
+    start_output_ = r.out;
+    if (started_) {
+      socket_path_ = run(tmux() + " display-message -p -t 0 '#{socket_path}'", false).out;
+      while (!socket_path_.empty() && socket_path_.back() == '\n') socket_path_.pop_back();
+    }
+  }
+  ~Terminal() {
+    (void)run(tmux() + " kill-server", true);
+    // kill-server leaves the socket file behind.
+    if (!socket_path_.empty()) ::unlink(socket_path_.c_str());
+  }
+  Terminal(const Terminal&) = delete;
+  Terminal& operator=(const Terminal&) = delete;
+
+  [[nodiscard]] bool started() const { return started_; }
+  [[nodiscard]] const std::string& start_output() const { return start_output_; }
+
+  [[nodiscard]] std::string screen() const {
+    return run(tmux() + " capture-pane -p -t 0", false).out;
+  }
+  // Literal text, character by character.
+  void type(const std::string& text) const {
+    (void)run(tmux() + " send-keys -t 0 -l -- " + sh_quote(text));
+  }
+  // A named key (Enter, Space, Escape) or a single character.
+  void key(const std::string& name) const {
+    (void)run(tmux() + " send-keys -t 0 " + sh_quote(name));
+  }
+
+  // Polls the screen until `pred` holds (true) or the bound passes (false); `last` is the
+  // screen last seen.
+  bool wait_for(const std::function<bool(const std::string&)>& pred, std::string& last,
+                std::chrono::milliseconds bound = kScreenBound) const {
+    const auto until = std::chrono::steady_clock::now() + bound;
+    while (true) {
+      last = screen();
+      if (pred(last)) return true;
+      if (std::chrono::steady_clock::now() >= until) return false;
+      std::this_thread::sleep_for(100ms);
+    }
+  }
+  bool wait_for_text(const std::string& text, std::string& last,
+                     std::chrono::milliseconds bound = kScreenBound) const {
+    return wait_for([&](const std::string& s) { return s.find(text) != std::string::npos; }, last,
+                    bound);
+  }
+
+ private:
+  static int next_id() {
+    static int id = 0;
+    return ++id;
+  }
+  [[nodiscard]] std::string tmux() const { return "tmux -L " + socket_; }
+
+  std::string socket_;
+  std::string socket_path_{};
+  bool started_{false};
+  std::string start_output_{};
+};
+
+// --- the live system ---------------------------------------------------------------------
+
+struct SystemPorts {
+  Ports nodes{};
+  int report{free_port()};
+  int request{free_port()};
+};
+
+// The paddles at 1 kHz with a wall 5 mm ahead of the slave at 1000 N/m, a fixed human pushing
+// 0.5 N, the supervisor's endpoints on free ports. The model assumes 2 samples of round trip
+// (the loopback link measures 1-2), so the supervisor's model stays put while the test reads
+// it.
+constexpr double kFixture = 1000.0;
+
+std::string system_config(const SystemPorts& p, const fs::path& record_dir) {
+  return "sample_rate_hz: 1000\n"
+         "round_trip_delay_samples: 2\n"
+         "master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } " +
+         node_section(p.nodes, true, "", 80) +
+         " }\n"
+         "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } "
+         "fixture { stiffness_N_per_m: 1000 position_m: 0.005 } " +
+         node_section(p.nodes, false, "", 80) +
+         " }\n"
+         "gains { kpm: 600 kps: 600 kdm: 2 kds: 2 }\n"
+         "velocity_filter { cutoff_hz: 200 }\n"
+         "human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }\n"
+         "scene { duration_s: 3 seed: 1 human_force { constant { force_N: 0.5 } } }\n"
+         "link { engage_ramp_ms: 20 }\n"
+         "supervisor { report_endpoint: \"" +
+         tcp(p.report) + "\" request_endpoint: \"" + tcp(p.request) + "\" record_dir: \"" +
+         record_dir.string() + "\" }\n";
+}
+
+std::optional<v1::SupervisorStatus> supervisor_status(zmq::context_t& ctx, int port) {
+  zmq::socket_t s(ctx, zmq::socket_type::req);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::rcvtimeo, 2000);
+  s.connect(tcp(port));
+  v1::SupervisorRequest req;
+  req.mutable_status();
+  const std::string bytes = req.SerializeAsString();
+  s.send(zmq::buffer(bytes), zmq::send_flags::none);
+  zmq::message_t reply;
+  if (!s.recv(reply)) return std::nullopt;
+  v1::SupervisorReply r;
+  if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size())) || !r.has_status()) {
+    return std::nullopt;
+  }
+  return r.status();
+}
+
+bool eventually(const std::function<bool()>& pred, std::chrono::milliseconds bound = 20s) {
+  const auto until = std::chrono::steady_clock::now() + bound;
+  while (std::chrono::steady_clock::now() < until) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(5ms);
+  }
+  return pred();
+}
+
+bool linked(const v1::Telemetry& t) { return t.link().accepted() > 0; }
+
+// The master, the slave and the supervisor from one file, the nodes' telemetry tapped.
+class LiveSystem {
+ public:
+  LiveSystem() {
+    config_ = dir_.write("system.textproto", system_config(ports_, dir_.path() / "sessions"));
+    supervisor_ = std::make_unique<Process>(
+        SUPERVISOR_BIN, std::vector<std::string>{config_.string()}, dir_.path() / "supervisor.log");
+    master_ = std::make_unique<Process>(MASTER_BIN, std::vector<std::string>{config_.string()},
+                                        dir_.path() / "master.log");
+    slave_ = std::make_unique<Process>(SLAVE_BIN, std::vector<std::string>{config_.string()},
+                                       dir_.path() / "slave.log");
+  }
+  // Both linked and the supervisor hearing both.
+  [[nodiscard]] bool up() {
+    return mt.wait_for(linked) && st.wait_for(linked) && eventually([&] {
+             const auto s = supervisor_status(ctx, ports_.request);
+             return s && s->master_alive() && s->slave_alive();
+           });
+  }
+  // Armed and engaged through the nodes' own command endpoints.
+  void engage_directly() {
+    for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+      for (const int port : {ports_.nodes.master_command, ports_.nodes.slave_command}) {
+        const auto r = send_command(ctx, tcp(port), kind);
+        ASSERT_TRUE(r.has_value()) << "no reply from " << port;
+        ASSERT_TRUE(r->ok()) << r->message();
+      }
+    }
+    ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << logs();
+    ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << logs();
+  }
+  [[nodiscard]] std::string console_command() const {
+    return std::string(TELEOPCTL_PATH) + " console " + config_.string();
+  }
+  [[nodiscard]] std::string supervisor_flag() const {
+    return "--supervisor 127.0.0.1:" + std::to_string(ports_.request);
+  }
+  [[nodiscard]] const fs::path& config() const { return config_; }
+  [[nodiscard]] std::string logs() const {
+    return "--- master\n" + master_->log() + "--- slave\n" + slave_->log() + "--- supervisor\n" +
+           supervisor_->log();
+  }
+
+  // The supervisor's round trip (report.roundTripSamples of `teleopctl status --json`) and
+  // sample rate; nullopt when status fails.
+  struct Model {
+    int round_trip_samples{0};
+    double sample_rate_hz{0.0};
+  };
+  [[nodiscard]] std::optional<Model> model() const {
+    const CliResult r = teleopctl("status --json " + supervisor_flag(), false);
+    if (r.exit_code != 0) return std::nullopt;
+    const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+    if (j.is_discarded() || !j.contains("report")) return std::nullopt;
+    return Model{j["report"].value("roundTripSamples", 0), j["report"].value("sampleRateHz", 0.0)};
+  }
+  // `teleopctl analyze --max-stiffness slave --json` of this system's file with that model.
+  [[nodiscard]] std::optional<double> analysed_limit(const Model& m, std::string& out) const {
+    std::string sets = " --set round_trip_delay_samples=" + std::to_string(m.round_trip_samples);
+    if (m.sample_rate_hz > 0.0 && m.sample_rate_hz != 1000.0) {
+      sets += " --set sample_rate_hz=" + exact(m.sample_rate_hz);
+    }
+    const CliResult r =
+        teleopctl("analyze " + config_.string() + " --max-stiffness slave --json" + sets, false);
+    out = r.out;
+    if (r.exit_code != 0) return std::nullopt;
+    const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+    if (j.is_discarded()) return std::nullopt;
+    return j["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
+  }
+  // The limit for the supervisor's current model (asserting on the way).
+  [[nodiscard]] double current_limit() const {
+    const auto m = model();
+    EXPECT_TRUE(m.has_value()) << "teleopctl status --json failed";
+    if (!m) return 0.0;
+    std::string out;
+    const auto limit = analysed_limit(*m, out);
+    EXPECT_TRUE(limit.has_value()) << out;
+    std::cout << "supervisor's model: round trip " << m->round_trip_samples << " samples at "
+              << m->sample_rate_hz << " Hz; teleopctl analyze: slave fixture limit "
+              << limit.value_or(0.0) << " N/m\n";
+    return limit.value_or(0.0);
+  }
+
+  // Declared in this order: the taps subscribe before the constructor starts the nodes.
+  zmq::context_t ctx{1};
+
+ private:
+  TempDir dir_{};
+  SystemPorts ports_{};
+  fs::path config_{};
+
+ public:
+  TelemetryTap mt{ctx, tcp(ports_.nodes.master_telemetry)};
+  TelemetryTap st{ctx, tcp(ports_.nodes.slave_telemetry)};
+
+ private:
+  std::unique_ptr<Process> supervisor_;
+  std::unique_ptr<Process> master_;
+  std::unique_ptr<Process> slave_;
+};
+
+bool both_engaged_on_screen(const std::string& s) {
+  return has_line_starting(s, "master ENGAGED") && has_line_starting(s, "slave  ENGAGED");
+}
+
+// --- tests -------------------------------------------------------------------------------
+
+TEST(Console, ConsoleShowsBothNodesEngaged) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  LiveSystem sys;
+  ASSERT_TRUE(sys.up()) << sys.logs();
+  Terminal term(sys.console_command());
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  // The console's first screens: the summary arriving, both nodes disarmed.
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        return has_line_starting(s, "TELEOP CONSOLE  live ") &&
+               s.find("WAITING FOR THE SUMMARY") == std::string::npos &&
+               has_line_starting(s, "master DISARMED") && has_line_starting(s, "slave  DISARMED");
+      },
+      screen))
+      << screen;
+  EXPECT_NE(screen.find("[read-write]"), std::string::npos) << screen;
+
+  // Engaged from the console's own keys: a arm, e engage (through the supervisor).
+  term.key("a");
+  ASSERT_TRUE(sys.mt.wait_for_mode(v1::ARMED)) << term.screen() << sys.logs();
+  ASSERT_TRUE(sys.st.wait_for_mode(v1::ARMED)) << term.screen() << sys.logs();
+  term.key("e");
+  ASSERT_TRUE(sys.mt.wait_for_mode(v1::ENGAGED)) << term.screen() << sys.logs();
+  ASSERT_TRUE(sys.st.wait_for_mode(v1::ENGAGED)) << term.screen() << sys.logs();
+  ASSERT_TRUE(term.wait_for(both_engaged_on_screen, screen)) << screen;
+  std::cout << screen;
+
+  // The fixture row: the configured stiffness and the analysed limit for the supervisor's
+  // round trip (re-read each poll, should the measured round trip change meanwhile).
+  std::map<int, double> limits;
+  std::string expected;
+  std::string why;
+  const bool shown = term.wait_for(
+      [&](const std::string& s) {
+        const auto m = sys.model();
+        if (!m) {
+          why = "teleopctl status --json failed";
+          return false;
+        }
+        if (!limits.contains(m->round_trip_samples)) {
+          std::string out;
+          const auto limit = sys.analysed_limit(*m, out);
+          if (!limit) {
+            why = "teleopctl analyze failed: " + out;
+            return false;
+          }
+          limits[m->round_trip_samples] = *limit;
+          std::cout << "round trip " << m->round_trip_samples << " samples: analysed limit "
+                    << *limit << " N/m\n";
+        }
+        const double limit = limits[m->round_trip_samples];
+        std::smatch match;
+        const std::string row = line_starting(s, "slave  fixture");
+        expected = "slave  fixture " + whole(kFixture) + " of " + whole(limit) +
+                   " N/m (round trip " + std::to_string(m->round_trip_samples) + " samples)";
+        if (!std::regex_search(row, match,
+                               std::regex(R"(^slave  fixture\s+(\d+) of\s+(\d+) N/m)"))) {
+          why = "no fixture row with a limit: '" + row + "'";
+          return false;
+        }
+        why = "row '" + row + "'";
+        return match[1] == whole(kFixture) && match[2] == whole(limit);
+      },
+      screen);
+  EXPECT_TRUE(shown) << "expected " << expected << "; " << why << "\nscreen:\n" << screen;
+  // Still both engaged on the same screen.
+  EXPECT_TRUE(both_engaged_on_screen(screen)) << screen;
+}
+
+TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  LiveSystem sys;
+  ASSERT_TRUE(sys.up()) << sys.logs();
+  sys.engage_directly();
+  if (HasFatalFailure()) return;
+  Terminal term(sys.console_command());
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  ASSERT_TRUE(term.wait_for(both_engaged_on_screen, screen)) << screen;
+  const double limit = sys.current_limit();
+  ASSERT_GT(limit, kFixture);
+
+  // 1.5 x the limit: refused straight from the prediction, with the reason; no y asked for.
+  const std::string too_stiff = whole(std::round(1.5 * limit));
+  term.key("s");
+  ASSERT_TRUE(term.wait_for_text("set (PATH=VALUE ...)> ", screen)) << screen;
+  term.type("slave.fixture.stiffness_N_per_m=" + too_stiff);
+  term.key("Enter");
+  std::string reason;
+  const bool refused = term.wait_for(
+      [&](const std::string& s) {
+        const std::size_t at = s.find("REFUSED");
+        if (at == std::string::npos) return false;
+        // The reason, joined across the lines it wraps over.
+        reason.clear();
+        for (const std::string& l : lines_of(s.substr(at))) reason += l;
+        return reason.find("unstable") != std::string::npos;
+      },
+      screen);
+  ASSERT_TRUE(refused) << "expected REFUSED ... unstable on screen:\n" << screen;
+  std::cout << screen;
+  EXPECT_EQ(screen.find("apply it?"), std::string::npos) << screen;
+  // The nodes: still the file's stiffness, no change in any cycle, half a second on.
+  const std::size_t m0 = sys.mt.messages();
+  const std::size_t s0 = sys.st.messages();
+  ASSERT_TRUE(
+      eventually([&] { return sys.mt.messages() >= m0 + 50 && sys.st.messages() >= s0 + 50; }));
+  for (const TelemetryTap* tap : {&sys.mt, &sys.st}) {
+    ASSERT_TRUE(tap->last().has_value());
+    EXPECT_EQ(tap->last()->active().slave_fixture_stiffness_n_per_m(), kFixture);
+    EXPECT_EQ(tap->last()->active().change_id(), 0u);
+    for (const auto& c : tap->cycles()) ASSERT_EQ(c.parameter_change_id(), 0u);
+  }
+
+  // 0.5 x the limit: the prediction first, then y applies it and both nodes ramp it in.
+  const std::string lower_text = whole(std::round(0.5 * limit));
+  const double lower = std::stod(lower_text);
+  term.key("s");
+  ASSERT_TRUE(term.wait_for_text("set (PATH=VALUE ...)> ", screen)) << screen;
+  term.type("slave.fixture.stiffness_N_per_m=" + lower_text);
+  term.key("Enter");
+  ASSERT_TRUE(term.wait_for(
+      [&](const std::string& s) {
+        return s.find("prediction for slave.fixture.stiffness_N_per_m=" + lower_text) !=
+                   std::string::npos &&
+               s.find("apply it? y applies") != std::string::npos;
+      },
+      screen))
+      << screen;
+  std::cout << screen;
+  term.key("y");
+  ASSERT_TRUE(term.wait_for_text("APPLIED slave.fixture.stiffness_N_per_m=" + lower_text, screen))
+      << screen;
+  std::cout << screen;
+  for (const TelemetryTap* tap : {&sys.mt, &sys.st}) {
+    EXPECT_TRUE(tap->wait_for([&](const v1::Telemetry& t) {
+      return t.active().change_id() != 0 && t.active().ramp_progress() == 1.0 &&
+             std::abs(t.active().slave_fixture_stiffness_n_per_m() - lower) < 1e-6;
+    })) << "active slave fixture stiffness "
+        << (tap->last() ? tap->last()->active().slave_fixture_stiffness_n_per_m() : -1.0);
+  }
+  // And the screen's fixture row follows.
+  EXPECT_TRUE(term.wait_for(
+      [&](const std::string& s) {
+        return std::regex_search(line_starting(s, "slave  fixture"),
+                                 std::regex("^slave  fixture\\s+" + lower_text + " of"));
+      },
+      screen))
+      << screen;
+}
+
+TEST(Console, EstopDrivesBothNodesSafeAndTheScreenSaysSo) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  LiveSystem sys;
+  ASSERT_TRUE(sys.up()) << sys.logs();
+  sys.engage_directly();
+  if (HasFatalFailure()) return;
+  Terminal term(sys.console_command());
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  ASSERT_TRUE(term.wait_for(both_engaged_on_screen, screen)) << screen;
+
+  term.key("x");
+  const bool safe = term.wait_for(
+      [](const std::string& s) {
+        return s.find("both nodes confirmed safe") != std::string::npos &&
+               has_line_starting(s, "master SAFE") && has_line_starting(s, "slave  SAFE");
+      },
+      screen);
+  EXPECT_TRUE(safe) << screen;
+  std::cout << screen;
+  EXPECT_NE(screen.find("E-STOP: "), std::string::npos) << screen;
+  // Independently: the nodes' own telemetry.
+  EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
+  EXPECT_TRUE(sys.st.wait_for_mode(v1::SAFE)) << sys.logs();
+}
+
+// The replay header: state, position and duration.
+struct ReplayHeader {
+  std::string state{};
+  double position_s{0.0};
+  double duration_s{0.0};
+};
+
+std::optional<ReplayHeader> replay_header(const std::string& screen) {
+  std::smatch m;
+  const std::string first = lines_of(screen).empty() ? "" : lines_of(screen).front();
+  if (!std::regex_search(first, m,
+                         std::regex(R"(^TELEOP REPLAY  (\S+) ([0-9.]+)/([0-9.]+) s  x)"))) {
+    return std::nullopt;
+  }
+  return ReplayHeader{m[1], std::stod(m[2]), std::stod(m[3])};
+}
+
+TEST(Console, ReplayCanBePausedAndResumed) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  TempDir dir;
+  // 20 s of the master-side fixture scene: long enough to play through the whole test at x1.
+  const fs::path file = dir.path() / "session.mcap";
+  const CliResult sim = teleopctl(
+      "simulate " + std::string(TELEOP_SOURCE_DIR) +
+      "/examples/scenes/paddles_master_fixture.textproto --duration 20 --out " + file.string());
+  ASSERT_TRUE(sim.exit_code == 0 || sim.exit_code == 3) << sim.out;
+  ASSERT_TRUE(fs::exists(file)) << sim.out;
+
+  const std::string control = tcp(free_port());
+  const std::string report = tcp(free_port());
+  Process replay(
+      TELEOPCTL_PATH,
+      {"replay", file.string(), "--speed", "1", "--hold", "--control", control, "--report", report,
+       "--master-telemetry", tcp(free_port()), "--slave-telemetry", tcp(free_port())},
+      dir.path() / "replay.log");
+  Terminal term(std::string(TELEOPCTL_PATH) + " console --replay --control " + control +
+                " --report " + report);
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        const auto h = replay_header(s);
+        return h && h->state == "playing";
+      },
+      screen))
+      << "no 'playing' in the header (does the replay publish the \"status\" summary?)\n"
+      << screen << "--- replay\n"
+      << replay.log();
+  std::cout << screen;
+  EXPECT_NE(lines_of(screen).front().find("session.mcap"), std::string::npos) << screen;
+  EXPECT_NEAR(replay_header(screen)->duration_s, 20.0, 0.1) << screen;
+
+  // Space: paused, and the position stays where it is.
+  term.key("Space");
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        const auto h = replay_header(s);
+        return h && h->state == "paused";
+      },
+      screen))
+      << screen << "--- replay\n"
+      << replay.log();
+  std::cout << screen;
+  const double paused_at = replay_header(screen)->position_s;
+  std::this_thread::sleep_for(500ms);
+  screen = term.screen();
+  const auto later = replay_header(screen);
+  ASSERT_TRUE(later.has_value()) << screen;
+  EXPECT_EQ(later->state, "paused") << screen;
+  EXPECT_EQ(later->position_s, paused_at) << screen;
+
+  // Space again: playing, and the position moves on from there.
+  term.key("Space");
+  ASSERT_TRUE(term.wait_for(
+      [&](const std::string& s) {
+        const auto h = replay_header(s);
+        return h && h->state == "playing" && h->position_s > paused_at;
+      },
+      screen))
+      << "paused at " << paused_at << "\n"
+      << screen << "--- replay\n"
+      << replay.log();
+  std::cout << screen;
+}
+
+TEST(Console, WithoutATerminalExitsOneNamingTeleopctlStatus) {
+  // stdin from /dev/null and stdout a pipe: no terminal.
+  const CliResult r = teleopctl("console < /dev/null");
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("teleopctl status"), std::string::npos) << r.out;
+}
+
+}  // namespace
+}  // namespace teleop::test

@@ -1,0 +1,275 @@
+// The console's screen (issue 6) from hand-made summaries: every expected row, bar and plot
+// cell below is worked out by hand from the layout rules stated in console_view.hpp.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "supervisor/teleopctl/console_view.hpp"
+
+namespace teleop::ctl {
+namespace {
+
+bool has_line_starting(const std::vector<std::string>& lines, const std::string& prefix) {
+  return std::any_of(lines.begin(), lines.end(),
+                     [&](const std::string& l) { return l.rfind(prefix, 0) == 0; });
+}
+
+bool contains(const std::vector<std::string>& lines, const std::string& text) {
+  return std::any_of(lines.begin(), lines.end(),
+                     [&](const std::string& l) { return l.find(text) != std::string::npos; });
+}
+
+std::string joined(const std::vector<std::string>& lines) {
+  std::string s;
+  for (const std::string& l : lines) s += l + "\n";
+  return s;
+}
+
+v1::SupervisorStatus engaged_status() {
+  v1::SupervisorStatus s;
+  s.set_time_ns(100'000'000'000);
+  s.set_source("live");
+  for (v1::NodeSummary* n : {s.mutable_master(), s.mutable_slave()}) {
+    n->set_alive(true);
+    n->set_mode(v1::ENGAGED);
+    n->set_loop_rate_hz(1000.0);
+    n->mutable_loop()->set_wakeup_p99_ns(45'000);
+    n->mutable_loop()->set_overruns(12);
+    n->set_overruns_last_minute(3);
+    n->mutable_loop()->set_cycles(5000);
+    n->mutable_rt()->set_fifo_priority(80);
+    n->mutable_rt()->set_memory_locked(true);
+    n->mutable_rt()->set_cpu(-1);
+    n->mutable_link()->set_round_trip_ns(620'000);
+    n->mutable_link()->set_round_trip_p99_ns(910'000);
+    n->mutable_link()->set_round_trip_samples(1);
+  }
+  s.mutable_master()->set_position_m(0.01234);
+  s.mutable_master()->set_force_n(1.5);
+  v1::StabilityReport* r = s.mutable_report();
+  r->set_verdict("stable");
+  r->set_min_damping_ratio(0.0912);
+  r->set_required_damping_ratio(0.05);
+  r->set_round_trip_samples(1);
+  r->set_sample_rate_hz(1000.0);
+  r->set_slave_fixture_stiffness_n_per_m(1000.0);
+  r->set_max_stable_slave_stiffness_n_per_m(4000.0);
+  r->set_slave_margin(0.75);
+  s.set_recording_file("/data/sessions/teleop-session-20261122-101500.mcap");
+  s.set_recording_bytes(12'300'000);
+  s.set_recorded_messages(4567);
+  s.set_recording_drops(0);
+  return s;
+}
+
+TEST(MarginBar, FillsInProportionToConfiguredOverMaximumWithTheLimitMarked) {
+  // width 22: 20 inner cells, the last is the limit '|'; 1000/4000 of the 19 before it is
+  // 4.75 -> 5 filled.
+  EXPECT_EQ(margin_bar(1000.0, 4000.0, 22), "[#####..............|]");
+  // At the limit: all 19 filled, then the limit mark.
+  EXPECT_EQ(margin_bar(4000.0, 4000.0, 12), "[#########|]");
+  // Zero stiffness: nothing filled.
+  EXPECT_EQ(margin_bar(0.0, 4000.0, 7), "[....|]");
+}
+
+TEST(MarginBar, BeyondTheLimitTheBarIsFullAndEndsInABang) {
+  EXPECT_EQ(margin_bar(5000.0, 4000.0, 12), "[#########!]");
+  EXPECT_EQ(margin_bar(1.0, 0.0, 6), "[###!]");  // no stable stiffness at all
+}
+
+TEST(Plot, BandsArePlacedByValueNewestOnTheRight) {
+  // Trace a: buckets [0,0], [1,1], [0,2] over a shared range [0, 2] on 3 rows:
+  // row = (2 - v) / 2 * 2 -> v=2: row 0, v=1: row 1, v=0: row 2.
+  v1::Trace a;
+  for (const auto& [mn, mx] : {std::pair{0.f, 0.f}, std::pair{1.f, 1.f}, std::pair{0.f, 2.f}}) {
+    a.add_min(mn);
+    a.add_max(mx);
+  }
+  v1::Trace b;  // one bucket at 2: the newest column, row 0, where a's band also is -> '#'
+  b.add_min(2.f);
+  b.add_max(2.f);
+  const std::vector<std::string> rows = render_plot(a, b, 3, 5, 1.0);
+  ASSERT_EQ(rows.size(), 3u);
+  // Columns 0, 1 empty (3 buckets right-aligned in 5 columns).
+  EXPECT_EQ(rows[0], "    #");
+  EXPECT_EQ(rows[1], "   mm");
+  EXPECT_EQ(rows[2], "  m m");
+}
+
+TEST(Plot, OlderBucketsThanTheWidthScrollOffAndScaleApplies) {
+  v1::Trace a;
+  for (int i = 0; i < 10; ++i) {  // values 0..9 m; only the last 4 (6..9) are shown
+    a.add_min(static_cast<float>(i));
+    a.add_max(static_cast<float>(i));
+  }
+  const v1::Trace none;
+  const std::vector<std::string> rows = render_plot(a, none, 4, 4, 1e3);
+  // Range 6000..9000 (mm) on 4 rows: 9000 row 0, 8000 row 1, 7000 row 2, 6000 row 3.
+  EXPECT_EQ(rows[0], "   m");
+  EXPECT_EQ(rows[1], "  m ");
+  EXPECT_EQ(rows[2], " m  ");
+  EXPECT_EQ(rows[3], "m   ");
+}
+
+TEST(Plot, EmptyTracesGiveBlankRows) {
+  const std::vector<std::string> rows = render_plot(v1::Trace{}, v1::Trace{}, 4, 10, 1.0);
+  ASSERT_EQ(rows.size(), 4u);
+  for (const std::string& r : rows) EXPECT_EQ(r, std::string(10, ' '));
+}
+
+TEST(ConsoleScreen, EightyByTwentyFourShowsNodesStabilityRecorderAndKeys) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v.source = "tcp://127.0.0.1:5566";
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u) << joined(lines);
+  for (const std::string& l : lines) EXPECT_LE(l.size(), 80u) << l;
+  EXPECT_TRUE(has_line_starting(lines, "master ENGAGED")) << joined(lines);
+  EXPECT_TRUE(has_line_starting(lines, "slave  ENGAGED")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "1000.0")) << joined(lines);  // loop rate
+  EXPECT_TRUE(contains(lines, "45us")) << joined(lines);    // wake-up p99
+  EXPECT_TRUE(contains(lines, "12/3")) << joined(lines);    // overruns total / last minute
+  EXPECT_TRUE(contains(lines, "FIFO80 lock")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "x+12.34mm")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "rtt 0.62 p99 0.91 ms 1 smp")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "stability STABLE  zeta min 0.0912 (required 0.0500)"))
+      << joined(lines);
+  EXPECT_TRUE(has_line_starting(lines, "slave  fixture   1000 of   4000 N/m [")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "margin   75%")) << joined(lines);
+  EXPECT_TRUE(has_line_starting(lines, "master fixture none")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "teleop-session-20261122-101500.mcap  12.3 MB  4567 msgs  0 drops"))
+      << joined(lines);
+  EXPECT_EQ(lines.back().rfind("x E-STOP", 0), 0u) << lines.back();
+  EXPECT_EQ(lines.front().find("NO SUMMARY"), std::string::npos);
+}
+
+TEST(ConsoleScreen, AStaleOrMissingSummaryIsSaidInTheHeader) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v.status_age_ns = 2'500'000'000;
+  EXPECT_NE(render_console(v, 24, 80).front().find("NO SUMMARY FOR 2.5 s"), std::string::npos);
+  v.status.reset();
+  EXPECT_NE(render_console(v, 24, 80).front().find("WAITING FOR THE SUMMARY"), std::string::npos);
+}
+
+TEST(ConsoleScreen, SilentAndSafeNodesShowTheirReason) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v.status->mutable_master()->set_mode(v1::SAFE);
+  v.status->mutable_master()->set_mode_reason("peer silent for 30 ms");
+  v.status->mutable_slave()->set_alive(false);
+  v.status->mutable_slave()->set_mode_reason("e-stop");
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  EXPECT_TRUE(has_line_starting(lines, "master SAFE")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "peer silent for 30 ms")) << joined(lines);
+  EXPECT_TRUE(has_line_starting(lines, "slave  SILENT")) << joined(lines);
+}
+
+TEST(ConsoleScreen, AlarmsNewestFirstWithTheirAgeEvidenceAndAction) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v1::Alarm* a = v.status->add_recent_alarms();
+  a->set_time_ns(98'000'000'000);  // 2 s before the status
+  a->set_severity(v1::Alarm::ACTION);
+  a->set_kind("oscillation");
+  a->set_side("slave");
+  a->set_message("sustained");
+  v1::Evidence* e = a->add_evidence();
+  e->set_name("amplitude");
+  e->set_value(2.6);
+  e->set_unit("mm");
+  a->set_action("lowered");
+  v1::Alarm* b = v.status->add_recent_alarms();
+  b->set_time_ns(90'000'000'000);
+  b->set_severity(v1::Alarm::WARNING);
+  b->set_kind("loss");
+  b->set_side("master");
+  b->set_message("lost");
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  const auto first = std::find_if(lines.begin(), lines.end(), [](const std::string& l) {
+    return l.find("ACTN oscillation slave: sustained amplitude=2.6mm -> lowered") !=
+           std::string::npos;
+  });
+  const auto second = std::find_if(lines.begin(), lines.end(), [](const std::string& l) {
+    return l.find("WARN loss master: lost") != std::string::npos;
+  });
+  ASSERT_NE(first, lines.end()) << joined(lines);
+  ASSERT_NE(second, lines.end()) << joined(lines);
+  EXPECT_LT(first, second);
+  EXPECT_NE(first->find("-2.0s"), std::string::npos) << *first;
+  EXPECT_NE(second->find("-10.0s"), std::string::npos) << *second;
+}
+
+TEST(ConsoleScreen, ALongMessageWrapsSoItsEndIsOnScreen) {
+  ConsoleView v;
+  v.status = engaged_status();
+  const std::string reason =
+      "REFUSED by the supervisor: the analyser predicts an unstable teleoperator (minimum "
+      "damping ratio -0.0324, round trip 1 samples)";
+  v.messages = {"older", reason};
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  // 116 characters: rows 21 and 22 hold it (80 + 36), row 20 the older message.
+  EXPECT_EQ(lines[20], "older");
+  EXPECT_EQ(lines[21], reason.substr(0, 80));
+  EXPECT_EQ(lines[22], reason.substr(80));
+}
+
+TEST(ConsoleScreen, ReadOnlyReplayAndHelpScreens) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v.read_only = true;
+  std::vector<std::string> lines = render_console(v, 24, 80);
+  EXPECT_NE(lines.front().find("[read-only]"), std::string::npos);
+  EXPECT_EQ(lines.back(), "READ-ONLY  x E-STOP  ? help  q quit");
+
+  v.read_only = false;
+  v.replay = true;
+  v1::ReplayPosition* r = v.status->mutable_replay();
+  r->set_file("/tmp/x/session.mcap");
+  r->set_state("paused");
+  r->set_position_s(12.25);
+  r->set_duration_s(60.0);
+  r->set_speed(2.0);
+  lines = render_console(v, 24, 80);
+  EXPECT_EQ(lines.front().rfind("TELEOP REPLAY  paused 12.2/60.0 s  x2  session.mcap", 0), 0u)
+      << lines.front();
+  EXPECT_EQ(lines.back().rfind("space pause/resume", 0), 0u);
+
+  v.help = true;
+  lines = render_console(v, 24, 80);
+  EXPECT_TRUE(contains(lines, "pause / resume")) << joined(lines);
+  v.replay = false;
+  lines = render_console(v, 24, 80);
+  EXPECT_TRUE(contains(lines, "E-STOP both nodes")) << joined(lines);
+  ASSERT_EQ(lines.size(), 24u);
+}
+
+TEST(ConsoleScreen, HelpAndKeyLinesFitEightyColumnsUncut) {
+  // Rendered 200 wide nothing is cut: every help and key line must still be at most 80.
+  ConsoleView v;
+  v.status = engaged_status();
+  v.help = true;
+  for (const bool replay : {false, true}) {
+    for (const bool read_only : {false, true}) {
+      v.replay = replay;
+      v.read_only = read_only;
+      const std::vector<std::string> lines = render_console(v, 24, 200);
+      for (std::size_t i = 1; i < lines.size(); ++i) EXPECT_LE(lines[i].size(), 80u) << lines[i];
+    }
+  }
+}
+
+TEST(ConsoleScreen, ASmallTerminalGetsAsManyRowsAsItHasKeysLast) {
+  ConsoleView v;
+  v.status = engaged_status();
+  const std::vector<std::string> lines = render_console(v, 10, 40);
+  ASSERT_EQ(lines.size(), 10u);
+  for (const std::string& l : lines) EXPECT_LE(l.size(), 40u);
+  EXPECT_EQ(lines.back().rfind("x E-STOP", 0), 0u);
+  EXPECT_TRUE(has_line_starting(lines, "master ENGAGED")) << joined(lines);
+}
+
+}  // namespace
+}  // namespace teleop::ctl
