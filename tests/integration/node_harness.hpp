@@ -1,5 +1,6 @@
-// Runs the real teleop-master / teleop-slave processes on loopback and watches them through
-// their own telemetry and command endpoints. Waits are for conditions seen in telemetry (with a
+// Runs the real teleop-master / teleop-slave (and teleop-supervisor) processes on loopback and
+// watches them through their own telemetry and command endpoints (the supervisor's through
+// its request endpoint). Waits are for conditions seen in telemetry (with a
 // generous bound against a hang), never for time to pass; deadlines are checked from the
 // nodes' own timestamps.
 #pragma once
@@ -27,6 +28,7 @@
 #include <vector>
 #include <zmq.hpp>
 
+#include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
 
 namespace teleop::test {
@@ -142,6 +144,16 @@ class Process {
   bool waited_{false};
 };
 
+// Bounded wait (against a hang) for a condition polled every few ms; true once it holds.
+inline bool eventually(const std::function<bool()>& pred, std::chrono::milliseconds bound = 20s) {
+  const auto until = std::chrono::steady_clock::now() + bound;
+  while (std::chrono::steady_clock::now() < until) {
+    if (pred()) return true;
+    std::this_thread::sleep_for(5ms);
+  }
+  return pred();
+}
+
 // Collects every telemetry message of one node on a thread of its own.
 class TelemetryTap {
  public:
@@ -233,6 +245,26 @@ inline std::optional<v1::NodeCommandReply> send_command(
   v1::NodeCommandReply r;
   if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size()))) return std::nullopt;
   return r;
+}
+
+// The supervisor's status from its request endpoint on this port (nullopt on timeout or a
+// reply without one).
+inline std::optional<v1::SupervisorStatus> supervisor_status(zmq::context_t& ctx, int port) {
+  zmq::socket_t s(ctx, zmq::socket_type::req);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::rcvtimeo, 2000);
+  s.connect(tcp(port));
+  v1::SupervisorRequest req;
+  req.mutable_status();
+  const std::string bytes = req.SerializeAsString();
+  s.send(zmq::buffer(bytes), zmq::send_flags::none);
+  zmq::message_t reply;
+  if (!s.recv(reply)) return std::nullopt;
+  v1::SupervisorReply r;
+  if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size())) || !r.has_status()) {
+    return std::nullopt;
+  }
+  return r.status();
 }
 
 }  // namespace teleop::test

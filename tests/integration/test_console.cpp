@@ -6,7 +6,6 @@
 // the nodes' own telemetry and against `teleopctl analyze`, an independent path.
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
@@ -14,6 +13,7 @@
 #include <regex>
 
 #include "teleop/v1/supervisor.pb.h"
+#include "tests/integration/cli_harness.hpp"
 #include "tests/integration/node_harness.hpp"
 
 namespace teleop::test {
@@ -23,39 +23,10 @@ namespace fs = std::filesystem;
 
 constexpr auto kScreenBound = 20s;
 
-struct CliResult {
-  int exit_code{-1};
-  std::string out{};
-};
-
-// A shell command line; stdout captured (stderr too when `merge_stderr`).
-CliResult run(const std::string& cmd, bool merge_stderr = true) {
-  CliResult r;
-  FILE* pipe = popen((cmd + (merge_stderr ? " 2>&1" : " 2>/dev/null")).c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-CliResult teleopctl(const std::string& args, bool merge_stderr = true) {
-  return run(std::string(TELEOPCTL_PATH) + " " + args, merge_stderr);
-}
-
 std::string sh_quote(const std::string& s) {
   std::string q = "'";
   for (const char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return q + "'";
-}
-
-// A number as text that parses back to the same double.
-std::string exact(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
 }
 
 // What the console prints for a stiffness ({:.0f}).
@@ -196,33 +167,6 @@ std::string system_config(const SystemPorts& p, const fs::path& record_dir) {
          record_dir.string() + "\" }\n";
 }
 
-std::optional<v1::SupervisorStatus> supervisor_status(zmq::context_t& ctx, int port) {
-  zmq::socket_t s(ctx, zmq::socket_type::req);
-  s.set(zmq::sockopt::linger, 0);
-  s.set(zmq::sockopt::rcvtimeo, 2000);
-  s.connect(tcp(port));
-  v1::SupervisorRequest req;
-  req.mutable_status();
-  const std::string bytes = req.SerializeAsString();
-  s.send(zmq::buffer(bytes), zmq::send_flags::none);
-  zmq::message_t reply;
-  if (!s.recv(reply)) return std::nullopt;
-  v1::SupervisorReply r;
-  if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size())) || !r.has_status()) {
-    return std::nullopt;
-  }
-  return r.status();
-}
-
-bool eventually(const std::function<bool()>& pred, std::chrono::milliseconds bound = 20s) {
-  const auto until = std::chrono::steady_clock::now() + bound;
-  while (std::chrono::steady_clock::now() < until) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return pred();
-}
-
 bool linked(const v1::Telemetry& t) { return t.link().accepted() > 0; }
 
 // The master, the slave and the supervisor from one file, the nodes' telemetry tapped.
@@ -256,8 +200,13 @@ class LiveSystem {
     ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << logs();
     ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << logs();
   }
-  [[nodiscard]] std::string console_command() const {
-    return std::string(TELEOPCTL_PATH) + " console " + config_.string();
+  [[nodiscard]] std::string console_command(const std::string& flags = "") const {
+    return std::string(TELEOPCTL_PATH) + " console " + config_.string() + flags;
+  }
+  // kill -9 of the supervisor; returns once it is gone.
+  void kill_supervisor() {
+    supervisor_->signal(SIGKILL);
+    (void)supervisor_->wait();
   }
   [[nodiscard]] std::string supervisor_flag() const {
     return "--supervisor 127.0.0.1:" + std::to_string(ports_.request);
@@ -329,6 +278,19 @@ class LiveSystem {
 
 bool both_engaged_on_screen(const std::string& s) {
   return has_line_starting(s, "master ENGAGED") && has_line_starting(s, "slave  ENGAGED");
+}
+
+// Where the stiffness and e-stop tests start: both nodes engaged directly (not from the
+// console), then the console in a terminal showing both engaged; `screen` is the screen last
+// seen. Asserts on the way: call it through ASSERT_NO_FATAL_FAILURE.
+void open_console_engaged(LiveSystem& sys, std::optional<Terminal>& term, std::string& screen,
+                          const std::string& flags = "") {
+  ASSERT_TRUE(sys.up()) << sys.logs();
+  sys.engage_directly();
+  if (::testing::Test::HasFatalFailure()) return;
+  term.emplace(sys.console_command(flags));
+  ASSERT_TRUE(term->started()) << term->start_output();
+  ASSERT_TRUE(term->wait_for(both_engaged_on_screen, screen)) << screen;
 }
 
 // --- tests -------------------------------------------------------------------------------
@@ -406,24 +368,20 @@ TEST(Console, ConsoleShowsBothNodesEngaged) {
 TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
   ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
-  ASSERT_TRUE(sys.up()) << sys.logs();
-  sys.engage_directly();
-  if (HasFatalFailure()) return;
-  Terminal term(sys.console_command());
-  ASSERT_TRUE(term.started()) << term.start_output();
+  std::optional<Terminal> term;
   std::string screen;
-  ASSERT_TRUE(term.wait_for(both_engaged_on_screen, screen)) << screen;
+  ASSERT_NO_FATAL_FAILURE(open_console_engaged(sys, term, screen));
   const double limit = sys.current_limit();
   ASSERT_GT(limit, kFixture);
 
   // 1.5 x the limit: refused straight from the prediction, with the reason; no y asked for.
   const std::string too_stiff = whole(std::round(1.5 * limit));
-  term.key("s");
-  ASSERT_TRUE(term.wait_for_text("set (PATH=VALUE ...)> ", screen)) << screen;
-  term.type("slave.fixture.stiffness_N_per_m=" + too_stiff);
-  term.key("Enter");
+  term->key("s");
+  ASSERT_TRUE(term->wait_for_text("set (PATH=VALUE ...)> ", screen)) << screen;
+  term->type("slave.fixture.stiffness_N_per_m=" + too_stiff);
+  term->key("Enter");
   std::string reason;
-  const bool refused = term.wait_for(
+  const bool refused = term->wait_for(
       [&](const std::string& s) {
         const std::size_t at = s.find("REFUSED");
         if (at == std::string::npos) return false;
@@ -451,11 +409,11 @@ TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
   // 0.5 x the limit: the prediction first, then y applies it and both nodes ramp it in.
   const std::string lower_text = whole(std::round(0.5 * limit));
   const double lower = std::stod(lower_text);
-  term.key("s");
-  ASSERT_TRUE(term.wait_for_text("set (PATH=VALUE ...)> ", screen)) << screen;
-  term.type("slave.fixture.stiffness_N_per_m=" + lower_text);
-  term.key("Enter");
-  ASSERT_TRUE(term.wait_for(
+  term->key("s");
+  ASSERT_TRUE(term->wait_for_text("set (PATH=VALUE ...)> ", screen)) << screen;
+  term->type("slave.fixture.stiffness_N_per_m=" + lower_text);
+  term->key("Enter");
+  ASSERT_TRUE(term->wait_for(
       [&](const std::string& s) {
         return s.find("prediction for slave.fixture.stiffness_N_per_m=" + lower_text) !=
                    std::string::npos &&
@@ -464,8 +422,8 @@ TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
       screen))
       << screen;
   std::cout << screen;
-  term.key("y");
-  ASSERT_TRUE(term.wait_for_text("APPLIED slave.fixture.stiffness_N_per_m=" + lower_text, screen))
+  term->key("y");
+  ASSERT_TRUE(term->wait_for_text("APPLIED slave.fixture.stiffness_N_per_m=" + lower_text, screen))
       << screen;
   std::cout << screen;
   for (const TelemetryTap* tap : {&sys.mt, &sys.st}) {
@@ -476,7 +434,7 @@ TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
         << (tap->last() ? tap->last()->active().slave_fixture_stiffness_n_per_m() : -1.0);
   }
   // And the screen's fixture row follows.
-  EXPECT_TRUE(term.wait_for(
+  EXPECT_TRUE(term->wait_for(
       [&](const std::string& s) {
         return std::regex_search(line_starting(s, "slave  fixture"),
                                  std::regex("^slave  fixture\\s+" + lower_text + " of"));
@@ -488,16 +446,12 @@ TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
 TEST(Console, EstopDrivesBothNodesSafeAndTheScreenSaysSo) {
   ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
-  ASSERT_TRUE(sys.up()) << sys.logs();
-  sys.engage_directly();
-  if (HasFatalFailure()) return;
-  Terminal term(sys.console_command());
-  ASSERT_TRUE(term.started()) << term.start_output();
+  std::optional<Terminal> term;
   std::string screen;
-  ASSERT_TRUE(term.wait_for(both_engaged_on_screen, screen)) << screen;
+  ASSERT_NO_FATAL_FAILURE(open_console_engaged(sys, term, screen));
 
-  term.key("x");
-  const bool safe = term.wait_for(
+  term->key("x");
+  const bool safe = term->wait_for(
       [](const std::string& s) {
         return s.find("both nodes confirmed safe") != std::string::npos &&
                has_line_starting(s, "master SAFE") && has_line_starting(s, "slave  SAFE");
@@ -509,6 +463,56 @@ TEST(Console, EstopDrivesBothNodesSafeAndTheScreenSaysSo) {
   // Independently: the nodes' own telemetry.
   EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
   EXPECT_TRUE(sys.st.wait_for_mode(v1::SAFE)) << sys.logs();
+}
+
+TEST(Console, EstopGoesStraightToTheNodesWhenTheSupervisorIsGone) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  LiveSystem sys;
+  std::optional<Terminal> term;
+  std::string screen;
+  ASSERT_NO_FATAL_FAILURE(open_console_engaged(sys, term, screen));
+  sys.kill_supervisor();
+  // The screen says its numbers are old (no summary for over a second) ...
+  EXPECT_TRUE(term->wait_for(
+      [](const std::string& s) { return s.find("NO SUMMARY FOR") != std::string::npos; }, screen))
+      << screen;
+  // ... and the e-stop still reaches both nodes, directly, each confirming.
+  term->key("x");
+  EXPECT_TRUE(term->wait_for(
+      [](const std::string& s) {
+        return s.find("sent to the nodes directly") != std::string::npos &&
+               s.find("both nodes confirmed safe") != std::string::npos;
+      },
+      screen))
+      << screen;
+  EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
+  EXPECT_TRUE(sys.st.wait_for_mode(v1::SAFE)) << sys.logs();
+}
+
+TEST(Console, ReadOnlyConsoleChangesNothingButCanEstop) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  LiveSystem sys;
+  std::optional<Terminal> term;
+  std::string screen;
+  ASSERT_NO_FATAL_FAILURE(open_console_engaged(sys, term, screen, " --read-only"));
+  EXPECT_NE(screen.find("[read-only]"), std::string::npos) << screen;
+  term->key("d");  // disengage: refused on this side, nothing sent
+  EXPECT_TRUE(term->wait_for(
+      [](const std::string& s) { return s.find("read-only console") != std::string::npos; },
+      screen))
+      << screen;
+  // Both nodes stay engaged over the next 300 cycles of the master's own telemetry.
+  const std::size_t seen = sys.mt.cycles().size();
+  ASSERT_TRUE(eventually([&] { return sys.mt.cycles().size() > seen + 300; })) << sys.logs();
+  const std::vector<v1::CycleRecord> after = sys.mt.cycles();
+  for (std::size_t i = seen; i < after.size(); ++i) ASSERT_EQ(after[i].mode(), v1::ENGAGED) << i;
+  EXPECT_EQ(sys.st.mode(), v1::ENGAGED);
+  term->key("x");
+  EXPECT_TRUE(term->wait_for(
+      [](const std::string& s) { return s.find("both nodes confirmed safe") != std::string::npos; },
+      screen))
+      << screen;
+  EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
 }
 
 // The replay header: state, position and duration.

@@ -32,6 +32,7 @@
 #include "common/record/mcap_reader.hpp"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
+#include "tests/integration/cli_harness.hpp"
 
 extern char** environ;
 
@@ -65,26 +66,19 @@ std::string read_text(const std::string& path) {
   return {std::istreambuf_iterator<char>(f), std::istreambuf_iterator<char>()};
 }
 
-struct CliResult {
+// teleopctl's stdout and stderr, kept apart (the shared CliResult merges or drops stderr).
+struct SplitResult {
   int exit_code{-1};
   std::string out{};
   std::string err{};
 };
 
 // Runs teleopctl with `args` (no spaces inside an argument), stdout and stderr kept apart.
-CliResult run(const TempDir& dir, const std::string& args) {
+SplitResult run(const TempDir& dir, const std::string& args) {
   const std::string err_file = dir.file("stderr.txt");
-  const std::string cmd = std::string(TELEOPCTL_PATH) + " " + args + " 2>" + err_file;
-  CliResult r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 65536> buf{};
-  std::size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.err = read_text(err_file);
-  return r;
+  const teleop::test::CliResult r =
+      teleop::test::capture(std::string(TELEOPCTL_PATH) + " " + args + " 2>" + err_file);
+  return {r.exit_code, r.out, read_text(err_file)};
 }
 
 std::string scene(const char* name) {
@@ -152,7 +146,7 @@ double scene_rate_hz(const std::string& path) {
 std::string simulate_mcap(const TempDir& dir, const std::string& scene_path,
                           const std::string& extra, const std::string& name) {
   const std::string out = dir.file(name);
-  const CliResult r = run(dir, "simulate " + scene_path + " " + extra + " --out " + out);
+  const SplitResult r = run(dir, "simulate " + scene_path + " " + extra + " --out " + out);
   EXPECT_TRUE(r.exit_code == 0 || r.exit_code == 3) << r.out << r.err;
   EXPECT_TRUE(fs::exists(out)) << r.err;
   return out;
@@ -169,7 +163,7 @@ TEST(Replay, SummaryCountsWhatSimulateWrote) {
   const auto cycles = static_cast<std::uint64_t>(std::llround(duration_s * rate));
   const std::uint64_t per_side = (cycles + 19) / 20;  // 20 cycles per Telemetry message
 
-  const CliResult r = run(dir, "replay " + file + " --json");
+  const SplitResult r = run(dir, "replay " + file + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json j = json::parse(r.out);
   EXPECT_NEAR(j["duration_s"].get<double>(), duration_s, 1e-9);
@@ -198,7 +192,7 @@ TEST(Replay, SummaryCountsWhatSimulateWrote) {
   ASSERT_EQ(j["stability"].size(), 1U);
 
   // The text form says the same.
-  const CliResult text = run(dir, "replay " + file);
+  const SplitResult text = run(dir, "replay " + file);
   ASSERT_EQ(text.exit_code, 0) << text.err;
   EXPECT_NE(text.out.find(std::to_string(cycles) + " cycles (sequences 1.." +
                           std::to_string(cycles) + "), 0 missing"),
@@ -221,7 +215,7 @@ TEST(Replay, CsvRowsAreTheCyclesAndEqualTheSimulateCsv) {
   const std::size_t n = sim.rows.size();
   ASSERT_EQ(n, static_cast<std::size_t>(std::llround(2.0 * rate)));
 
-  const CliResult r = run(dir, "replay " + file + " --csv");
+  const SplitResult r = run(dir, "replay " + file + " --csv");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const Csv rep = parse_csv(r.out);
   ASSERT_EQ(rep.rows.size(), 2 * n);
@@ -263,10 +257,10 @@ TEST(Replay, PrintsTheStabilityReportTheAnalyserGives) {
   const TempDir dir;
   const std::string path = scene("paddles_slave_fixture_unstable.textproto");
   const std::string file = simulate_mcap(dir, path, "--duration 1", "u.mcap");
-  const CliResult sim = run(dir, "simulate " + path + " --duration 1 --json");
+  const SplitResult sim = run(dir, "simulate " + path + " --duration 1 --json");
   const json predicted = json::parse(sim.out)["predicted"];
 
-  const CliResult r = run(dir, "replay " + file + " --print /supervisor/stability --json");
+  const SplitResult r = run(dir, "replay " + file + " --print /supervisor/stability --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const std::vector<std::string> lines = lines_of(r.out);
   ASSERT_EQ(lines.size(), 1U) << r.out;
@@ -278,13 +272,13 @@ TEST(Replay, PrintsTheStabilityReportTheAnalyserGives) {
               predicted["min_damping_ratio"].get<double>(), 1e-12);
   EXPECT_EQ(j["message"]["slave_fixture_stiffness_N_per_m"].get<double>(), 4000.0);
 
-  const CliResult text = run(dir, "replay " + file + " --print /supervisor/stability");
+  const SplitResult text = run(dir, "replay " + file + " --print /supervisor/stability");
   ASSERT_EQ(text.exit_code, 0) << text.err;
   ASSERT_EQ(lines_of(text.out).size(), 1U);
   EXPECT_EQ(text.out.rfind("0.000000000 { verdict: \"unstable\"", 0), 0U) << text.out;
 
   // Every telemetry message prints, one line each.
-  const CliResult tel = run(dir, "replay " + file + " --print /slave/telemetry --json");
+  const SplitResult tel = run(dir, "replay " + file + " --print /slave/telemetry --json");
   ASSERT_EQ(tel.exit_code, 0) << tel.err;
   EXPECT_EQ(lines_of(tel.out).size(), static_cast<std::size_t>(500 / 20));
 }
@@ -293,7 +287,7 @@ TEST(Replay, ErrorsNameTheFileAndWhatIsWrong) {
   const TempDir dir;
   const std::string file =
       simulate_mcap(dir, scene("paddles_slave_fixture_stable.textproto"), "--duration 1", "s.mcap");
-  CliResult r = run(dir, "replay " + file + " --print /nope");
+  SplitResult r = run(dir, "replay " + file + " --print /nope");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find(file + ": no channel '/nope' (channels: /config,"), std::string::npos)
       << r.err;
@@ -320,7 +314,7 @@ TEST(Replay, ErrorsNameTheFileAndWhatIsWrong) {
   EXPECT_EQ(run(dir, "replay " + file + " --speed 0").exit_code, 2);
   EXPECT_EQ(run(dir, "replay " + file + " --csv --resimulate").exit_code, 2);
   EXPECT_EQ(run(dir, "replay " + file + " --bogus").exit_code, 2);
-  const CliResult help = run(dir, "replay --help");
+  const SplitResult help = run(dir, "replay --help");
   EXPECT_EQ(help.exit_code, 0);
   EXPECT_EQ(help.out.rfind("usage: teleopctl replay", 0), 0U) << help.out;
 }
@@ -364,7 +358,7 @@ TEST(Replay, RecoverKeepsExactlyTheCompleteChunks) {
   ASSERT_FALSE(expected.empty());
 
   const std::string out = dir.file("recovered.mcap");
-  const CliResult r = run(dir, "replay " + cut + " --recover " + out + " --json");
+  const SplitResult r = run(dir, "replay " + cut + " --recover " + out + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json j = json::parse(r.out);
   EXPECT_EQ(j["chunks"].get<std::uint64_t>(), expected_chunks);
@@ -381,7 +375,7 @@ TEST(Replay, RecoverKeepsExactlyTheCompleteChunks) {
   EXPECT_TRUE(got == expected) << got.size() << " vs " << expected.size();
 
   // The recovered file replays: its summary counts the cycles of the kept telemetry.
-  const CliResult text = run(dir, "replay " + cut + " --recover " + dir.file("again.mcap"));
+  const SplitResult text = run(dir, "replay " + cut + " --recover " + dir.file("again.mcap"));
   ASSERT_EQ(text.exit_code, 0) << text.err;
   EXPECT_NE(
       text.out.find("kept 2 complete chunks, " + std::to_string(expected.size()) + " messages"),
@@ -860,7 +854,7 @@ TEST(IdentifySession, BothPaddlesFromASimulatedSessionFile) {
     double damping_Ns_per_m;
   } cases[] = {{"master", 0.040, 0.41}, {"slave", 0.036, 0.49}};
   for (const auto& c : cases) {
-    const CliResult r = run(dir, "identify " + file + " --device " + c.device + " --json");
+    const SplitResult r = run(dir, "identify " + file + " --device " + c.device + " --json");
     ASSERT_EQ(r.exit_code, 0) << r.err << r.out;
     const json j = json::parse(r.out);
     const double m = j["mass_kg"].get<double>();
@@ -876,7 +870,7 @@ TEST(IdentifySession, BothPaddlesFromASimulatedSessionFile) {
               << j["r_squared"].get<double>() << "\n";
   }
   // Column options are for CSV files.
-  const CliResult bad = run(dir, "identify " + file + " --position x --force f");
+  const SplitResult bad = run(dir, "identify " + file + " --position x --force f");
   EXPECT_EQ(bad.exit_code, 1);
   EXPECT_NE(bad.err.find("are for CSV files"), std::string::npos) << bad.err;
 }
@@ -889,7 +883,7 @@ TEST(Replay, ResimulationWithASofterFixtureOscillatesLess) {
   ASSERT_TRUE(sim["oscillation"]["detected"].get<bool>());
 
   // As recorded: the resimulation plays the lockstep's loop again and finds what it recorded.
-  CliResult r = run(dir, "replay " + file + " --resimulate --json");
+  SplitResult r = run(dir, "replay " + file + " --resimulate --json");
   EXPECT_EQ(r.exit_code, 3) << r.err;  // the resimulated slave oscillates
   json j = json::parse(r.out);
   const json rec = j["recorded"]["outcome"];

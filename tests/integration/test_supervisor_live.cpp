@@ -8,9 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
-#include <array>
 #include <cmath>
-#include <cstdio>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -21,6 +19,7 @@
 #include "common/transport/zmq_sockets.hpp"
 #include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
+#include "tests/integration/cli_harness.hpp"
 #include "tests/integration/node_harness.hpp"
 
 namespace teleop::test {
@@ -80,35 +79,6 @@ std::string example_with_endpoints(const std::string& name, const SystemPorts& p
   return text + "\n" + supervisor_section(p, record_dir, supervisor_extra);
 }
 
-// A number as text that parses back to the same double.
-std::string exact(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof(buf), "%.17g", v);
-  return buf;
-}
-
-struct CliResult {
-  int exit_code{-1};
-  std::string out{};
-};
-
-// A command line; stdout captured (stderr too when `merge_stderr`).
-CliResult run(const std::string& cmd, bool merge_stderr = true) {
-  CliResult r;
-  FILE* pipe = popen((cmd + (merge_stderr ? " 2>&1" : " 2>/dev/null")).c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-CliResult teleopctl(const std::string& args, bool merge_stderr = true) {
-  return run(std::string(TELEOPCTL_PATH) + " " + args, merge_stderr);
-}
-
 // The official TypeScript reader (tests/mcap_js/verify.mjs): every message decoded against
 // its embedded schema. The JSON it prints, or null with the reason in `why`.
 nlohmann::json verify_mjs(const fs::path& file, const std::string& options, std::string& why) {
@@ -165,34 +135,6 @@ class System {
   std::unique_ptr<Process> supervisor_;
 };
 
-std::optional<v1::SupervisorStatus> supervisor_status(zmq::context_t& ctx, int port) {
-  zmq::socket_t s(ctx, zmq::socket_type::req);
-  s.set(zmq::sockopt::linger, 0);
-  s.set(zmq::sockopt::rcvtimeo, 2000);
-  s.connect(tcp(port));
-  v1::SupervisorRequest req;
-  req.mutable_status();
-  const std::string bytes = req.SerializeAsString();
-  s.send(zmq::buffer(bytes), zmq::send_flags::none);
-  zmq::message_t reply;
-  if (!s.recv(reply)) return std::nullopt;
-  v1::SupervisorReply r;
-  if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size())) || !r.has_status()) {
-    return std::nullopt;
-  }
-  return r.status();
-}
-
-// Bounded wait (against a hang) for a condition polled every few ms.
-bool eventually(const std::function<bool()>& pred, std::chrono::milliseconds bound = 20s) {
-  const auto until = std::chrono::steady_clock::now() + bound;
-  while (std::chrono::steady_clock::now() < until) {
-    if (pred()) return true;
-    std::this_thread::sleep_for(5ms);
-  }
-  return pred();
-}
-
 bool supervisor_sees_both(zmq::context_t& ctx, int port) {
   return eventually([&] {
     const auto s = supervisor_status(ctx, port);
@@ -210,6 +152,26 @@ void engage(zmq::context_t& ctx, const Ports& p) {
       ASSERT_TRUE(r->ok()) << r->message();
     }
   }
+}
+
+// Starts the supervisor, then the nodes, and waits until both nodes are linked and the
+// supervisor hears both; asserts on the way (call it through ASSERT_NO_FATAL_FAILURE).
+void start_linked(System& sys, zmq::context_t& ctx, const SystemPorts& ports,
+                  const TelemetryTap& mt, const TelemetryTap& st) {
+  sys.start_supervisor();
+  sys.start_nodes();
+  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
+}
+
+// Arms and engages both nodes directly and waits until both report ENGAGED; asserts on the
+// way (call it through ASSERT_NO_FATAL_FAILURE).
+void engage_both(const System& sys, zmq::context_t& ctx, const SystemPorts& ports,
+                 const TelemetryTap& mt, const TelemetryTap& st) {
+  engage(ctx, ports.nodes);
+  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
 }
 
 std::size_t engaged_cycles(const TelemetryTap& tap) {
@@ -450,14 +412,8 @@ TEST(SupervisorLive, SessionRecordedLiveIsReadCompletelyByTheOfficialReaderAndBy
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
-  sys.start_supervisor();
-  sys.start_nodes();
-  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
-  engage(ctx, ports.nodes);
-  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
-  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
+  ASSERT_NO_FATAL_FAILURE(engage_both(sys, ctx, ports, mt, st));
   // Three seconds engaged, as the nodes' own cycles count them.
   ASSERT_TRUE(
       eventually([&] { return engaged_cycles(mt) >= 3000 && engaged_cycles(st) >= 3000; }, 60s));
@@ -551,14 +507,8 @@ TEST(SupervisorLive, KillNineOfTheSupervisorKeepsEveryCompleteChunkAndTheNodesSt
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
-  sys.start_supervisor();
-  sys.start_nodes();
-  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
-  engage(ctx, ports.nodes);
-  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
-  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
+  ASSERT_NO_FATAL_FAILURE(engage_both(sys, ctx, ports, mt, st));
   // Mid-session: engaged a while, several chunks on disk.
   std::optional<fs::path> file;
   ASSERT_TRUE(eventually(
@@ -655,14 +605,8 @@ TEST(SupervisorLive, GuardRefusesAStiffnessAboveTheAnalysedLimitAndBothNodesRamp
   ActiveTap ma(ctx, tcp(ports.nodes.master_telemetry));
   ActiveTap sa(ctx, tcp(ports.nodes.slave_telemetry));
   ReportTap reports(ctx, tcp(ports.report));
-  sys.start_supervisor();
-  sys.start_nodes();
-  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
-  engage(ctx, ports.nodes);
-  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
-  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
+  ASSERT_NO_FATAL_FAILURE(engage_both(sys, ctx, ports, mt, st));
   ASSERT_TRUE(eventually([&] { return engaged_cycles(mt) >= 500; }));
 
   {
@@ -822,11 +766,7 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
   ReportTap reports(ctx, tcp(ports.report));
-  sys.start_supervisor();
-  sys.start_nodes();
-  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
   engage(ctx, ports.nodes);
   ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
 
@@ -1009,14 +949,8 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   ReportTap reports(ctx, tcp(ports.report));
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
-  sys.start_supervisor();
-  sys.start_nodes();
-  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
-  engage(ctx, ports.nodes);
-  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << sys.logs();
-  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
+  ASSERT_NO_FATAL_FAILURE(engage_both(sys, ctx, ports, mt, st));
 
   // status --json against what the supervisor itself published on its report stream (its
   // newest StabilityReport), against `teleopctl analyze` for the round trip it assumed (an
@@ -1219,11 +1153,7 @@ TEST(SupervisorLive, ForwardedCommandsReachBothNodesAndRecordingStopsAndStartsAN
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
-  sys.start_supervisor();
-  sys.start_nodes();
-  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(st.wait_for(linked)) << sys.logs();
-  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
   // Arm and engage through the supervisor: each node answers, then both engage.
   for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
     v1::SupervisorRequest req;

@@ -1,32 +1,17 @@
 // The real teleopctl binary on the shipped examples and on broken input: what a user sees.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
+#include <cmath>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "tests/integration/cli_harness.hpp"
+
 namespace {
 
-struct CliResult {
-  int exit_code{-1};
-  std::string out{};
-};
-
-CliResult run(const std::string& args) {
-  const std::string cmd = std::string(TELEOPCTL_PATH) + " " + args + " 2>&1";
-  CliResult r;
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (pipe == nullptr) return r;
-  std::array<char, 4096> buf{};
-  std::size_t n = 0;
-  while ((n = fread(buf.data(), 1, buf.size(), pipe)) > 0) r.out.append(buf.data(), n);
-  const int status = pclose(pipe);
-  r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using teleop::test::CliResult;
+using teleop::test::teleopctl;
 
 std::string example(const char* name) {
   return std::string(TELEOP_SOURCE_DIR) + "/examples/" + name;
@@ -39,7 +24,7 @@ std::string temp_config(const std::string& name, const std::string& text) {
 }
 
 TEST(Teleopctl, ShippedPaddlesExampleIsStable) {
-  const CliResult r = run("analyze " + example("paddles.textproto") + " --json");
+  const CliResult r = teleopctl("analyze " + example("paddles.textproto") + " --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_EQ(j["verdict"], "stable");
@@ -56,8 +41,8 @@ TEST(Teleopctl, ShippedPaddlesExampleIsStable) {
 }
 
 TEST(Teleopctl, SlaveLimitTableOverRates) {
-  const CliResult r = run("analyze " + example("paddles.textproto") +
-                          " --max-stiffness slave --rates 250,500,1000,2000 --json");
+  const CliResult r = teleopctl("analyze " + example("paddles.textproto") +
+                                " --max-stiffness slave --rates 250,500,1000,2000 --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["limits"].size(), 4u);
@@ -73,8 +58,8 @@ TEST(Teleopctl, SlaveLimitTableOverRates) {
 }
 
 TEST(Teleopctl, SweepOfAGainAddsTheSweptValueToEachRow) {
-  const CliResult r = run("analyze " + example("paddles.textproto") +
-                          " --max-stiffness master --sweep gains.kdm=1:3:1 --json");
+  const CliResult r = teleopctl("analyze " + example("paddles.textproto") +
+                                " --max-stiffness master --sweep gains.kdm=1:3:1 --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["limits"].size(), 3u);
@@ -84,7 +69,8 @@ TEST(Teleopctl, SweepOfAGainAddsTheSweptValueToEachRow) {
 
 TEST(Teleopctl, ForceLoopOfThePaperGives1105NPerM) {
   // Vlachos-Papadopoulos: M = 0.25 kg, B = 5 Ns/m, T = 1 ms, K_p = 5, B_v = 0.1 -> 1105 N/m.
-  const CliResult r = run("analyze " + example("force_loop.textproto") + " --force-loop --json");
+  const CliResult r =
+      teleopctl("analyze " + example("force_loop.textproto") + " --force-loop --json");
   ASSERT_EQ(r.exit_code, 0) << r.out;
   const auto j = nlohmann::json::parse(r.out);
   EXPECT_NEAR(j["kv_limit_N_per_m"].get<double>(), 1105.0, 1.0);
@@ -92,8 +78,8 @@ TEST(Teleopctl, ForceLoopOfThePaperGives1105NPerM) {
 }
 
 TEST(Teleopctl, SetOverrideMakesTheExampleUnstable) {
-  const CliResult r = run("analyze " + example("paddles.textproto") +
-                          " --set slave.fixture.stiffness_N_per_m=20000 --json");
+  const CliResult r = teleopctl("analyze " + example("paddles.textproto") +
+                                " --set slave.fixture.stiffness_N_per_m=20000 --json");
   EXPECT_EQ(r.exit_code, 3) << r.out;
   EXPECT_EQ(nlohmann::json::parse(r.out)["verdict"], "unstable");
 }
@@ -101,7 +87,7 @@ TEST(Teleopctl, SetOverrideMakesTheExampleUnstable) {
 TEST(Teleopctl, BadConfigNamesFileLineAndField) {
   const std::string path =
       temp_config("bad.textproto", "sample_rate_hz: 500\ngains { kpm: 600 kpx: 1 }\n");
-  const CliResult r = run("analyze " + path);
+  const CliResult r = teleopctl("analyze " + path);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("bad.textproto:2:"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("kpx"), std::string::npos) << r.out;
@@ -112,7 +98,7 @@ TEST(Teleopctl, NanIsRejected) {
       "nan.textproto",
       "sample_rate_hz: 500\nmaster { device { mass_kg: nan damping_Ns_per_m: 0.41 } }\n"
       "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } }\ngains { kpm: 600 }\n");
-  const CliResult r = run("analyze " + path);
+  const CliResult r = teleopctl("analyze " + path);
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("nan.textproto:2:"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("master.device.mass_kg"), std::string::npos) << r.out;
@@ -120,7 +106,7 @@ TEST(Teleopctl, NanIsRejected) {
 
 TEST(Teleopctl, PlotsAreWritten) {
   const std::string cloud = ::testing::TempDir() + "cloud.svg";
-  ASSERT_EQ(run("analyze " + example("paddles.textproto") + " --plot " + cloud).exit_code, 0);
+  ASSERT_EQ(teleopctl("analyze " + example("paddles.textproto") + " --plot " + cloud).exit_code, 0);
   std::ifstream f(cloud);
   const std::string svg((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   EXPECT_NE(svg.find("<svg"), std::string::npos);
@@ -128,9 +114,9 @@ TEST(Teleopctl, PlotsAreWritten) {
 }
 
 TEST(Teleopctl, UsageErrorsExitWith2) {
-  EXPECT_EQ(run("analyze").exit_code, 2);
-  EXPECT_EQ(run("analyze x --max-stiffness sideways").exit_code, 2);
-  EXPECT_EQ(run("frobnicate").exit_code, 2);
+  EXPECT_EQ(teleopctl("analyze").exit_code, 2);
+  EXPECT_EQ(teleopctl("analyze x --max-stiffness sideways").exit_code, 2);
+  EXPECT_EQ(teleopctl("frobnicate").exit_code, 2);
 }
 
 }  // namespace
@@ -149,13 +135,13 @@ std::string scene(const char* name) {
 TEST(TeleopctlSimulate, StableAndUnstableSlaveFixturesAsTheAnalyserSays) {
   // Scene 3 at 1500 N/m (below the 2116 N/m band limit at 500 Hz) and 4000 N/m (above it).
   const CliResult stable =
-      run("simulate " + scene("paddles_slave_fixture_stable.textproto") + " --json");
+      teleopctl("simulate " + scene("paddles_slave_fixture_stable.textproto") + " --json");
   ASSERT_EQ(stable.exit_code, 0) << stable.out;
   const auto s = nlohmann::json::parse(stable.out);
   EXPECT_FALSE(s["oscillation"]["detected"].get<bool>());
   EXPECT_EQ(s["predicted"]["verdict"], "stable");
   const CliResult unstable =
-      run("simulate " + scene("paddles_slave_fixture_unstable.textproto") + " --json");
+      teleopctl("simulate " + scene("paddles_slave_fixture_unstable.textproto") + " --json");
   ASSERT_EQ(unstable.exit_code, 3) << unstable.out;
   const auto u = nlohmann::json::parse(unstable.out);
   EXPECT_TRUE(u["oscillation"]["detected"].get<bool>());
@@ -168,9 +154,9 @@ TEST(TeleopctlSimulate, SameSeedSameBytesOtherSeedOtherNoise) {
   const std::string b = ::testing::TempDir() + "b.csv";
   const std::string c = ::testing::TempDir() + "c.csv";
   const std::string sc = scene("force_free_motion.textproto");
-  ASSERT_EQ(run("simulate " + sc + " --duration 1 --seed 3 --out " + a).exit_code, 0);
-  ASSERT_EQ(run("simulate " + sc + " --duration 1 --seed 3 --out " + b).exit_code, 0);
-  ASSERT_EQ(run("simulate " + sc + " --duration 1 --seed 4 --out " + c).exit_code, 0);
+  ASSERT_EQ(teleopctl("simulate " + sc + " --duration 1 --seed 3 --out " + a).exit_code, 0);
+  ASSERT_EQ(teleopctl("simulate " + sc + " --duration 1 --seed 3 --out " + b).exit_code, 0);
+  ASSERT_EQ(teleopctl("simulate " + sc + " --duration 1 --seed 4 --out " + c).exit_code, 0);
   const std::string ta = slurp(a);
   EXPECT_GT(ta.size(), 1000u);
   EXPECT_EQ(ta, slurp(b));
@@ -187,8 +173,8 @@ TEST(TeleopctlSimulate, ClosedLoopForceControlCutsTheParasiticForce) {
   // K_p = 5 cuts it by at least 75 % (paper: 83 %).
   const std::string sc = scene("force_free_motion.textproto");
   const auto open =
-      nlohmann::json::parse(run("simulate " + sc + " --json --set force_loop.kp=0").out);
-  const auto closed = nlohmann::json::parse(run("simulate " + sc + " --json").out);
+      nlohmann::json::parse(teleopctl("simulate " + sc + " --json --set force_loop.kp=0").out);
+  const auto closed = nlohmann::json::parse(teleopctl("simulate " + sc + " --json").out);
   const double p_open = open["parasitic_force_peak_N"].get<double>();
   const double p_closed = closed["parasitic_force_peak_N"].get<double>();
   EXPECT_NEAR(p_open, 0.6, 0.1);
@@ -196,15 +182,15 @@ TEST(TeleopctlSimulate, ClosedLoopForceControlCutsTheParasiticForce) {
   // Scenario 2: pushed 1 cm into 125 N/m tissue; closed loop halves the force error at least.
   const std::string tissue = scene("force_tissue.textproto");
   const auto t_open =
-      nlohmann::json::parse(run("simulate " + tissue + " --json --set force_loop.kp=0").out);
-  const auto t_closed = nlohmann::json::parse(run("simulate " + tissue + " --json").out);
+      nlohmann::json::parse(teleopctl("simulate " + tissue + " --json --set force_loop.kp=0").out);
+  const auto t_closed = nlohmann::json::parse(teleopctl("simulate " + tissue + " --json").out);
   EXPECT_LE(t_closed["force_error_rms_N"].get<double>(),
             0.5 * t_open["force_error_rms_N"].get<double>());
   EXPECT_NEAR(t_closed["max_penetration_slave_m"].get<double>(), 0.01, 0.002);
 }
 
 TEST(TeleopctlSimulate, BadSceneNamesTheField) {
-  const CliResult r = run("simulate " + example("paddles.textproto"));
+  const CliResult r = teleopctl("simulate " + example("paddles.textproto"));
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.out.find("scene.duration_s"), std::string::npos) << r.out;
 }
