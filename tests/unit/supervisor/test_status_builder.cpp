@@ -178,7 +178,7 @@ TEST(StatusBuilderOverruns, CountsTheIncreaseOverTheLastMinute) {
     // (5 messages) older. The count is therefore between the increase over exactly 60 s
     // (600 messages back) and over 60.5 s (605 messages back).
     const std::uint64_t exact = ov[uj] - ov[uj - 600];
-    const std::uint64_t widest = ov[uj] - ov[std::max<std::size_t>(0, uj - 605)];
+    const std::uint64_t widest = ov[uj] - ov[uj >= 605 ? uj - 605 : 0];
     if (widest > exact) ++nontrivial_bands;
     EXPECT_GE(got, exact) << "j=" << j;
     EXPECT_LE(got, widest) << "j=" << j;
