@@ -3,6 +3,8 @@
 // detector on a sliding window) and a time-domain passivity observer per side.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <deque>
 #include <vector>
@@ -33,25 +35,45 @@ class OscillationMonitor {
 // flowed into the teleoperator through this port (f the force the outside applies along +x, v
 // the port velocity). A negative E means the teleoperator has given out more energy than it
 // received there: it is active at that port. The threshold absorbs sensor noise.
+//
+// It also keeps E over the last `window_s`, for the power flowing in over that window: encoder
+// quantisation makes a coupled port dither by a count, which sustains a tiny steady outflow
+// (about 0.25 mW in the shipped demo) that a cumulative E alone turns into an alarm after
+// tens of seconds. The supervisor alarms when E is below its threshold *and* the port is
+// still giving out more than a minimum power (supervisor.passivity_power_threshold_W).
 class PassivityObserver {
  public:
-  explicit PassivityObserver(double period_s) : period_s_(period_s) {}
+  explicit PassivityObserver(double period_s, double window_s = 1.0)
+      : period_s_(period_s),
+        window_samples_(static_cast<std::size_t>(std::max(1.0, std::round(window_s / period_s)))) {}
   void add(double force_N, double velocity_m_per_s) {
     energy_J_ += period_s_ * force_N * velocity_m_per_s;
     if (energy_J_ < min_energy_J_) min_energy_J_ = energy_J_;
+    history_.push_back(energy_J_);
+    while (history_.size() > window_samples_ + 1) history_.pop_front();
   }
   [[nodiscard]] double energy_J() const { return energy_J_; }
   // The deepest the energy has been below zero (0 when never).
   [[nodiscard]] double min_energy_J() const { return min_energy_J_; }
+  // Mean power into the port over the last window (or what has been seen of it), W; negative:
+  // the port is giving energy out. 0 before two samples.
+  [[nodiscard]] double recent_power_W() const {
+    if (history_.size() < 2) return 0.0;
+    return (history_.back() - history_.front()) /
+           (static_cast<double>(history_.size() - 1) * period_s_);
+  }
   void reset() {
     energy_J_ = 0.0;
     min_energy_J_ = 0.0;
+    history_.clear();
   }
 
  private:
   double period_s_;
+  std::size_t window_samples_;
   double energy_J_{0.0};
   double min_energy_J_{0.0};
+  std::deque<double> history_{};
 };
 
 }  // namespace teleop::supervisor

@@ -84,6 +84,8 @@ struct SupervisorApp::Impl {
     oscillation_threshold_m =
         s.has_oscillation_threshold_m() ? s.oscillation_threshold_m() : 2.0 * count_m;
     passivity_threshold_J = s.has_passivity_threshold_j() ? s.passivity_threshold_j() : 0.005;
+    passivity_power_threshold_W =
+        s.has_passivity_power_threshold_w() ? s.passivity_power_threshold_w() : 0.002;
     escalation_ns =
         static_cast<std::int64_t>((s.has_escalation_ms() ? s.escalation_ms() : 500.0) * 1e6);
     change_ramp_ms = s.has_change_ramp_ms() ? s.change_ramp_ms() : 200.0;
@@ -409,10 +411,12 @@ struct SupervisorApp::Impl {
                       {"previous_amplitude", o.previous_amplitude_m * 1e3, "mm"}};
         }
       }
-      if (what.empty() && n->passivity->min_energy_J() < -passivity_threshold_J) {
+      if (what.empty() && n->passivity->energy_J() < -passivity_threshold_J &&
+          n->passivity->recent_power_W() < -passivity_power_threshold_W) {
         what = "active port (passivity observer)";
         evidence = {{"energy", n->passivity->energy_J(), "J"},
-                    {"min_energy", n->passivity->min_energy_J(), "J"}};
+                    {"min_energy", n->passivity->min_energy_J(), "J"},
+                    {"power_last_second", n->passivity->recent_power_W(), "W"}};
       }
       if (what.empty()) {
         n->oscillating_since_ns = 0;
@@ -735,6 +739,7 @@ struct SupervisorApp::Impl {
   std::string request_endpoint;
   double oscillation_threshold_m{0.0};
   double passivity_threshold_J{0.0};
+  double passivity_power_threshold_W{0.0};
   std::int64_t escalation_ns{0};
   double change_ramp_ms{200.0};
   double period_s{0.001};

@@ -158,5 +158,25 @@ TEST(PassivityObserver, AFreeMassDamperOnlyAbsorbsEnergyAndItsStoredEnergyIsExac
   EXPECT_LT(active.min_energy_J(), 0.0);
 }
 
+TEST(PassivityObserver, RecentPowerIsTheMeanOverTheLastWindow) {
+  // T = 1 ms, 1 s window. 2000 samples giving out 0.1 W (f = -1 N, v = 0.1 m/s), then 300
+  // taking in 0.1 W: the last second holds 700 of the first and 300 of the second, so the
+  // mean power is (700 x -0.1 + 300 x 0.1) / 1000 = -0.04 W.
+  const double T = 1e-3;
+  PassivityObserver po(T, 1.0);
+  EXPECT_EQ(po.recent_power_W(), 0.0);
+  for (int k = 0; k < 2000; ++k) po.add(-1.0, 0.1);
+  EXPECT_NEAR(po.recent_power_W(), -0.1, 1e-12);
+  for (int k = 0; k < 300; ++k) po.add(1.0, 0.1);
+  EXPECT_NEAR(po.recent_power_W(), -0.04, 1e-12);
+  // The cumulative energy is all of it: (-2000 + 300) x 0.1 x 1 ms.
+  EXPECT_NEAR(po.energy_J(), -0.17, 1e-12);
+  po.reset();
+  EXPECT_EQ(po.recent_power_W(), 0.0);
+  // Half a window seen: the mean over what there is.
+  for (int k = 0; k < 501; ++k) po.add(-2.0, 0.1);
+  EXPECT_NEAR(po.recent_power_W(), -0.2, 1e-12);
+}
+
 }  // namespace
 }  // namespace teleop::supervisor
