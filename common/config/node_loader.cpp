@@ -135,7 +135,10 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
   const v1::Node& node = own.node();
   out.endpoints.state = node.state_endpoint().empty() ? defaults.state : node.state_endpoint();
   out.endpoints.peer_state =
-      other.node().state_endpoint().empty() ? defaults.peer_state : other.node().state_endpoint();
+      !node.peer_state_endpoint().empty()
+          ? node.peer_state_endpoint()
+          : (other.node().state_endpoint().empty() ? defaults.peer_state
+                                                   : other.node().state_endpoint());
   out.endpoints.command =
       node.command_endpoint().empty() ? defaults.command : node.command_endpoint();
   out.endpoints.telemetry =

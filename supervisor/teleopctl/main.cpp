@@ -9,6 +9,7 @@
 #include "supervisor/teleopctl/identify_command.hpp"
 #include "supervisor/teleopctl/keygen_command.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
+#include "supervisor/teleopctl/relay_command.hpp"
 #include "supervisor/teleopctl/replay_command.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
 #include "supervisor/teleopctl/simulate_command.hpp"
@@ -30,6 +31,7 @@ void usage(std::ostream& os) {
         "  estop      e-stop to both nodes directly (see 'teleopctl estop --help')\n"
         "  status     the supervisor's status, --json for scripts ('teleopctl status --help')\n"
         "  console    the operator's full-screen console, live or on a replay ('--help')\n"
+        "  relay      a fault-injecting relay for one direction of a node link ('--help')\n"
         "  help       this text\n";
 }
 
@@ -84,7 +86,8 @@ int main(int argc, char** argv) {
         Simple{"replay", teleop::ctl::replay_usage, teleop::ctl::run_replay},
         Simple{"estop", teleop::ctl::estop_usage, teleop::ctl::run_estop},
         Simple{"status", teleop::ctl::status_usage, teleop::ctl::run_status},
-        Simple{"console", teleop::ctl::console_usage, teleop::ctl::run_console}}) {
+        Simple{"console", teleop::ctl::console_usage, teleop::ctl::run_console},
+        Simple{"relay", teleop::ctl::relay_usage, teleop::ctl::run_relay}}) {
     if (args[0] != c.name) continue;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {

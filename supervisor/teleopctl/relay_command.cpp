@@ -1,0 +1,240 @@
+#include "supervisor/teleopctl/relay_command.hpp"
+
+#include <fmt/core.h>
+#include <signal.h>
+
+#include <atomic>
+#include <chrono>
+#include <map>
+#include <optional>
+#include <zmq.hpp>
+
+#include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/node_command.hpp"
+
+namespace teleop::ctl {
+namespace {
+
+std::atomic<bool> g_stop{false};
+extern "C" void on_relay_signal(int) { g_stop = true; }
+
+double probability(const std::string& text, const char* flag) {
+  const double p = parse_number(text, flag);
+  if (!(p >= 0.0 && p <= 1.0)) throw UsageError(fmt::format("{} must be in [0, 1]", flag));
+  return p;
+}
+
+double non_negative(const std::string& text, const char* flag) {
+  const double v = parse_number(text, flag);
+  if (!(v >= 0.0)) throw UsageError(fmt::format("{} must be >= 0", flag));
+  return v;
+}
+
+using Clock = std::chrono::steady_clock;
+using Frames = std::vector<zmq::message_t>;
+
+}  // namespace
+
+RelayPlanner::RelayPlanner(const RelayFaults& faults) : f_(faults), rng_(faults.seed) {}
+
+RelayPlan RelayPlanner::plan(double since_first_s) {
+  ++received;
+  RelayPlan p;
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  // Every draw is made for every message, so one fault's setting does not shift another's
+  // sequence of decisions.
+  const double r_drop = u(rng_);
+  const double r_dup = u(rng_);
+  const double r_reorder = u(rng_);
+  const double r_jitter = u(rng_);
+  const double r_jitter2 = u(rng_);
+  if (f_.blackout_at_s >= 0.0 && since_first_s >= f_.blackout_at_s &&
+      since_first_s < f_.blackout_at_s + f_.blackout_ms * 1e-3) {
+    ++blacked_out;
+    return p;
+  }
+  if (r_drop < f_.drop) {
+    ++dropped;
+    return p;
+  }
+  auto delay = [&](double r) {
+    return std::max(0.0, f_.delay_ms + (2.0 * r - 1.0) * f_.jitter_ms);
+  };
+  p.delays_ms.push_back(delay(r_jitter));
+  if (r_dup < f_.duplicate) {
+    ++duplicated;
+    p.delays_ms.push_back(std::max(p.delays_ms.front(), delay(r_jitter2)) + 0.05);
+  }
+  if (r_reorder < f_.reorder) {
+    ++reordered;
+    p.hold = true;
+  }
+  return p;
+}
+
+std::string relay_usage() {
+  return "usage: teleopctl relay --from ENDPOINT --to ENDPOINT [--delay-ms D] [--jitter-ms J]\n"
+         "                      [--drop P] [--duplicate P] [--reorder P]\n"
+         "                      [--blackout-at-s T --blackout-ms M] [--seed S]\n\n"
+         "The project's fault-injecting relay for one direction of a node link: subscribes to\n"
+         "the NodeState publisher at --from, re-publishes every message on --to (bound) after\n"
+         "D ms (plus uniform jitter in [-J, J]), dropping with probability P, sending a second\n"
+         "copy with probability P, holding one back until after the next with probability P,\n"
+         "and dropping everything for M ms from T s after the first message. Decisions are\n"
+         "seeded (--seed, default 1). Point the peer's node.peer_state_endpoint at --to; one\n"
+         "relay per direction. Plaintext links only (frames are forwarded as they are). Prints\n"
+         "its counts once a second and at the end; stops on SIGINT/SIGTERM.\n";
+}
+
+int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  std::string from;
+  std::string to;
+  RelayFaults f;
+  ArgCursor cur(args);
+  while (cur.next()) {
+    const std::string& a = cur.arg();
+    if (a == "--from") {
+      from = to_endpoint(cur.value("--from"));
+    } else if (a == "--to") {
+      to = to_endpoint(cur.value("--to"));
+    } else if (a == "--delay-ms") {
+      f.delay_ms = non_negative(cur.value("--delay-ms"), "--delay-ms");
+    } else if (a == "--jitter-ms") {
+      f.jitter_ms = non_negative(cur.value("--jitter-ms"), "--jitter-ms");
+    } else if (a == "--drop") {
+      f.drop = probability(cur.value("--drop"), "--drop");
+    } else if (a == "--duplicate") {
+      f.duplicate = probability(cur.value("--duplicate"), "--duplicate");
+    } else if (a == "--reorder") {
+      f.reorder = probability(cur.value("--reorder"), "--reorder");
+    } else if (a == "--blackout-at-s") {
+      f.blackout_at_s = non_negative(cur.value("--blackout-at-s"), "--blackout-at-s");
+    } else if (a == "--blackout-ms") {
+      f.blackout_ms = non_negative(cur.value("--blackout-ms"), "--blackout-ms");
+    } else if (a == "--seed") {
+      f.seed = static_cast<std::uint64_t>(non_negative(cur.value("--seed"), "--seed"));
+    } else {
+      throw UsageError("unknown argument '" + a + "'");
+    }
+  }
+  if (from.empty() || to.empty()) throw UsageError("--from and --to are required");
+  if (f.blackout_ms > 0.0 && f.blackout_at_s < 0.0) {
+    throw UsageError("--blackout-ms goes with --blackout-at-s");
+  }
+  return run_guarded("relay", err, [&]() -> int {
+    zmq::context_t ctx(1);
+    zmq::socket_t sub(ctx, zmq::socket_type::sub);
+    sub.set(zmq::sockopt::linger, 0);
+    sub.set(zmq::sockopt::rcvhwm, 100000);
+    sub.set(zmq::sockopt::reconnect_ivl, 10);
+    sub.set(zmq::sockopt::subscribe, "");
+    sub.connect(from);
+    zmq::socket_t pub(ctx, zmq::socket_type::pub);
+    pub.set(zmq::sockopt::linger, 0);
+    pub.set(zmq::sockopt::sndhwm, 100000);
+    try {
+      pub.bind(to);
+    } catch (const zmq::error_t& e) {
+      throw std::runtime_error(fmt::format("--to {}: cannot bind: {}", to, e.what()));
+    }
+    struct sigaction sa {};
+    sa.sa_handler = on_relay_signal;
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+    out << fmt::format(
+               "relaying {} -> {}: delay {} ms, jitter {} ms, drop {}, duplicate {}, reorder {}, "
+               "seed {}\n",
+               from, to, f.delay_ms, f.jitter_ms, f.drop, f.duplicate, f.reorder, f.seed)
+        << std::flush;
+    RelayPlanner planner(f);
+    // Messages waiting for their release time (several copies of one share its frames).
+    std::multimap<Clock::time_point, std::shared_ptr<Frames>> queue;
+    // A message held back until after the next one (null: none).
+    std::shared_ptr<Frames> held;
+    std::vector<Clock::time_point> held_times;
+    std::optional<Clock::time_point> first;
+    std::uint64_t sent = 0;
+    auto report = [&] {
+      out << fmt::format(
+                 "relay: received {} sent {} dropped {} blacked out {} duplicated {} reordered {} "
+                 "queued {}\n",
+                 planner.received, sent, planner.dropped, planner.blacked_out, planner.duplicated,
+                 planner.reordered, queue.size())
+          << std::flush;
+    };
+    Clock::time_point next_report = Clock::now() + std::chrono::seconds(1);
+    while (!g_stop.load()) {
+      const Clock::time_point now = Clock::now();
+      // Send what is due.
+      while (!queue.empty() && queue.begin()->first <= now) {
+        const Frames& frames = *queue.begin()->second;
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+          zmq::message_t copy;
+          copy.copy(const_cast<zmq::message_t&>(frames[i]));
+          (void)pub.send(
+              copy, i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::dontwait);
+        }
+        ++sent;
+        queue.erase(queue.begin());
+      }
+      if (now >= next_report) {
+        report();
+        next_report += std::chrono::seconds(1);
+      }
+      // A held message that no next one came for within 50 ms goes out as planned.
+      if (held && now - held_times.front() > std::chrono::milliseconds(50)) {
+        for (const auto& t : held_times) queue.emplace(t, held);
+        held.reset();
+      }
+      long timeout_us = 1000;
+      if (!queue.empty()) {
+        timeout_us = std::clamp<long>(
+            static_cast<long>(
+                std::chrono::duration_cast<std::chrono::microseconds>(queue.begin()->first - now)
+                    .count()),
+            0L, 1000L);
+      }
+      zmq::pollitem_t item{sub.handle(), 0, ZMQ_POLLIN, 0};
+      try {
+        (void)zmq::poll(&item, 1, std::chrono::milliseconds(timeout_us >= 1000 ? 1 : 0));
+      } catch (const zmq::error_t&) {
+        continue;
+      }
+      zmq::message_t part;
+      while (sub.recv(part, zmq::recv_flags::dontwait)) {
+        auto frames = std::make_shared<Frames>();
+        frames->push_back(std::move(part));
+        while (frames->back().more()) {
+          zmq::message_t next;
+          if (!sub.recv(next, zmq::recv_flags::none)) break;
+          frames->push_back(std::move(next));
+        }
+        const Clock::time_point at = Clock::now();
+        if (!first) first = at;
+        const RelayPlan plan = planner.plan(std::chrono::duration<double>(at - *first).count());
+        std::vector<Clock::time_point> times;
+        for (const double d : plan.delays_ms) {
+          times.push_back(at + std::chrono::duration_cast<Clock::duration>(
+                                   std::chrono::duration<double, std::milli>(d)));
+        }
+        if (times.empty()) continue;
+        // A held message goes out just after this one.
+        if (held) {
+          const Clock::time_point after = times.front() + std::chrono::microseconds(10);
+          for (const auto& t : held_times) queue.emplace(std::max(t, after), held);
+          held.reset();
+        }
+        if (plan.hold) {
+          held = frames;
+          held_times = times;
+        } else {
+          for (const auto& t : times) queue.emplace(t, frames);
+        }
+      }
+    }
+    report();
+    return kExitOk;
+  });
+}
+
+}  // namespace teleop::ctl
