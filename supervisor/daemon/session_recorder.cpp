@@ -44,6 +44,7 @@ class SessionRecorder final : public RecordSink {
   [[nodiscard]] std::string file() const override { return file_.string(); }
   [[nodiscard]] std::uint64_t recorded() const override { return recorder_.written(); }
   [[nodiscard]] std::uint64_t drops() const override { return recorder_.drops(); }
+  [[nodiscard]] std::string error() const override { return recorder_.error(); }
   [[nodiscard]] std::uint64_t bytes() const override {
     std::error_code ec;
     const auto size = std::filesystem::file_size(file_, ec);

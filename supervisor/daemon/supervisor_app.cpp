@@ -296,6 +296,10 @@ struct SupervisorApp::Impl {
             fmt::format("went {} ({})", v1::NodeMode_Name(t.mode()), t.mode_reason()), {});
     }
     n.mode = t.mode();
+    if (is_master && !heard_master) {
+      heard_master = true;
+      adopt_parameters_in_force(t);
+    }
     n.last = t;
     n.last_received_ns = now;
     for (const v1::CycleRecord& c : t.cycles()) {
@@ -305,6 +309,33 @@ struct SupervisorApp::Impl {
     }
     n.summary->add(t, now);
     record(is_master ? "/master/telemetry" : "/slave/telemetry", t);
+  }
+
+  // A supervisor started (or restarted) while the nodes run: what they run is what counts.
+  // A guarded change made by an earlier supervisor is adopted (gains, fixtures and the change
+  // number, so the next change follows it), and the alarm says so.
+  void adopt_parameters_in_force(const v1::Telemetry& t) {
+    const bool running =
+        t.mode() == v1::ALIGNING || t.mode() == v1::ENGAGED || t.mode() == v1::CLUTCHED;
+    const v1::ActiveParameters& a = t.active();
+    if (t.has_active() && a.change_id() > change_id) {
+      change_id = a.change_id();
+      live.gains = from_proto(a.gains());
+      live.master_fixture_N_per_m = a.master_fixture_stiffness_n_per_m();
+      live.slave_fixture_N_per_m = a.slave_fixture_stiffness_n_per_m();
+      alarm(v1::Alarm::WARNING, "supervisor", "system",
+            fmt::format("started with the nodes already {}: change {} in force, adopted "
+                        "(master fixture {:.0f} N/m, slave fixture {:.0f} N/m)",
+                        v1::NodeMode_Name(t.mode()), a.change_id(), live.master_fixture_N_per_m,
+                        live.slave_fixture_N_per_m),
+            {{"change_id", static_cast<double>(a.change_id()), ""}});
+      publish_report(fmt::format("adopted the parameters in force (change {})", a.change_id()));
+    } else if (running) {
+      alarm(v1::Alarm::WARNING, "supervisor", "system",
+            fmt::format("started with the nodes already {} (configured parameters in force)",
+                        v1::NodeMode_Name(t.mode())),
+            {});
+    }
   }
 
   void check_live() {
@@ -544,6 +575,7 @@ struct SupervisorApp::Impl {
       s.set_recorded_messages(opts.sink->recorded());
       s.set_recording_drops(opts.sink->drops());
       s.set_recording_bytes(opts.sink->bytes());
+      s.set_recording_error(opts.sink->error());
     }
     s.set_master_alive(master.last && now - master.last_received_ns < 500'000'000);
     s.set_slave_alive(slave.last && now - slave.last_received_ns < 500'000'000);
@@ -621,6 +653,7 @@ struct SupervisorApp::Impl {
       return;
     }
     opts.sink = opts.new_sink();
+    recorder_failure_announced = false;
     record("/config", loaded.config);
     record("/supervisor/stability", report);
     alarm(v1::Alarm::INFO, "command", "system", "recording started: " + opts.sink->file(), {});
@@ -710,6 +743,17 @@ struct SupervisorApp::Impl {
       if (monotonic_ns() >= next_check) {
         next_check += 100'000'000;
         check_live();
+        // A recorder that stopped on an error (disk full) is said once, loudly; the nodes are
+        // not affected and the file keeps every chunk written before it.
+        if (opts.sink && !recorder_failure_announced) {
+          const std::string why = opts.sink->error();
+          if (!why.empty()) {
+            recorder_failure_announced = true;
+            alarm(v1::Alarm::CRITICAL, "recorder", "system", "recording stopped: " + why,
+                  {{"recorded_messages", static_cast<double>(opts.sink->recorded()), ""},
+                   {"dropped", static_cast<double>(opts.sink->drops()), ""}});
+          }
+        }
         // The summary stream consoles draw from: ten times a second.
         v1::SupervisorStatus st;
         fill_status(st, false);
@@ -758,6 +802,8 @@ struct SupervisorApp::Impl {
   std::map<std::string, std::int64_t> last_alarm_ns{};
   std::uint64_t checks{0};
   std::vector<std::string> read_only_keys{};
+  bool heard_master{false};
+  bool recorder_failure_announced{false};
   int escalation_stage{0};
   std::int64_t escalated_ns{0};  // stage 1: when the lowered stiffness is fully in force
   bool settled{true};

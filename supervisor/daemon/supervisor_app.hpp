@@ -28,6 +28,8 @@ class RecordSink {
   [[nodiscard]] virtual std::uint64_t recorded() const { return 0; }
   [[nodiscard]] virtual std::uint64_t drops() const { return 0; }
   [[nodiscard]] virtual std::uint64_t bytes() const { return 0; }
+  // "" while recording works; else why it stopped (disk full, I/O error), naming the file.
+  [[nodiscard]] virtual std::string error() const { return {}; }
 };
 
 struct SupervisorOptions {

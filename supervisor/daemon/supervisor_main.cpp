@@ -56,6 +56,9 @@ int run_supervisor_main(int argc, char** argv) {
     usage(std::cerr);
     return 2;
   }
+  // A file-size limit (RLIMIT_FSIZE) then fails the recorder's write with EFBIG, as a full disk
+  // fails it with ENOSPC, instead of killing the supervisor.
+  signal(SIGXFSZ, SIG_IGN);
   sigset_t signals;
   sigemptyset(&signals);
   sigaddset(&signals, SIGINT);

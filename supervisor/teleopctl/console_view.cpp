@@ -303,7 +303,8 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
           fmt::format("recorder  off{}",
                       s.record_dir().empty() ? "" : " (r starts one in " + s.record_dir() + ")"));
     } else {
-      lines.push_back(fmt::format("recorder  {}  {:.1f} MB  {} msgs  {} drops",
+      lines.push_back(fmt::format("recorder  {}{}  {:.1f} MB  {} msgs  {} drops",
+                                  s.recording_error().empty() ? "" : "STOPPED: ",
                                   std::filesystem::path(s.recording_file()).filename().string(),
                                   static_cast<double>(s.recording_bytes()) / 1e6,
                                   s.recorded_messages(), s.recording_drops()));

@@ -115,6 +115,15 @@ class System {
     supervisor_ = std::make_unique<Process>(
         SUPERVISOR_BIN, std::vector<std::string>{config_.string()}, dir_.path() / "supervisor.log");
   }
+  // With its files limited to `bytes` (RLIMIT_FSIZE, util-linux prlimit): past it a write
+  // fails with EFBIG, through the recorder's path for a full disk (ENOSPC).
+  void start_supervisor_with_file_limit(std::uint64_t bytes) {
+    supervisor_ =
+        std::make_unique<Process>("/usr/bin/prlimit",
+                                  std::vector<std::string>{"--fsize=" + std::to_string(bytes), "--",
+                                                           SUPERVISOR_BIN, config_.string()},
+                                  dir_.path() / "supervisor.log");
+  }
   Process& master() { return *master_; }
   Process& slave() { return *slave_; }
   Process& supervisor() { return *supervisor_; }
@@ -1204,6 +1213,118 @@ TEST(SupervisorLive, ForwardedCommandsReachBothNodesAndRecordingStopsAndStartsAN
     const auto s = supervisor_status(ctx, ports.request);
     return s && s->recorded_messages() > 100 && s->recording_bytes() > 0;
   })) << sys.logs();
+}
+
+std::vector<fs::path> session_files(const fs::path& dir) {
+  std::vector<fs::path> files;
+  if (!fs::exists(dir)) return files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.path().extension() == ".mcap") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+TEST(SupervisorLive, RestartedSupervisorAdoptsTheParametersInForceAndRecordsInANewFile) {
+  TempDir dir;
+  SystemPorts ports;
+  const fs::path sessions = dir.path() / "sessions";
+  System sys(dir, paddles_config(ports, sessions, 0.5,
+                                 "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }"));
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
+  TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
+  ASSERT_NO_FATAL_FAILURE(start_linked(sys, ctx, ports, mt, st));
+  ASSERT_NO_FATAL_FAILURE(engage_both(sys, ctx, ports, mt, st));
+  const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(ports.request);
+  CliResult r = teleopctl("set slave.fixture.stiffness_N_per_m=500" + sup);
+  ASSERT_EQ(r.exit_code, 0) << r.out;
+  auto in_force = [](double k, std::uint64_t id) {
+    return [k, id](const v1::Telemetry& t) {
+      return t.active().change_id() == id && t.active().slave_fixture_stiffness_n_per_m() == k &&
+             t.active().ramp_progress() == 1.0;
+    };
+  };
+  ASSERT_TRUE(st.wait_for(in_force(500.0, 1))) << sys.logs();
+
+  // kill -9: the nodes go on with what the supervisor last put in force.
+  sys.supervisor().signal(SIGKILL);
+  (void)sys.supervisor().wait();
+  const std::size_t seen = st.cycles().size();
+  ASSERT_TRUE(eventually([&] { return st.cycles().size() > seen + 500; })) << sys.logs();
+  const std::vector<v1::CycleRecord> after = st.cycles();
+  for (std::size_t i = seen; i < after.size(); ++i) {
+    ASSERT_EQ(after[i].mode(), v1::ENGAGED) << i;
+    ASSERT_EQ(after[i].parameter_change_id(), 1u) << i;
+  }
+  EXPECT_EQ(st.last()->active().slave_fixture_stiffness_n_per_m(), 500.0);
+
+  // Restarted: a new session file, the parameters in force adopted (not the file's 1000 N/m),
+  // an alarm saying so, and the next change numbered after the adopted one.
+  sys.start_supervisor();
+  std::optional<v1::SupervisorStatus> status;
+  ASSERT_TRUE(eventually([&] {
+    status = supervisor_status(ctx, ports.request);
+    return status && status->report().parameter_change_id() == 1;
+  })) << sys.logs();
+  EXPECT_EQ(status->report().slave_fixture_stiffness_n_per_m(), 500.0);
+  EXPECT_EQ(session_files(sessions).size(), 2u);
+  EXPECT_NE(status->recording_file(), "");
+  const bool said = std::any_of(status->recent_alarms().begin(), status->recent_alarms().end(),
+                                [](const v1::Alarm& a) {
+                                  return a.kind() == "supervisor" &&
+                                         a.message().find("change 1 in force") != std::string::npos;
+                                });
+  EXPECT_TRUE(said) << status->DebugString();
+  r = teleopctl("set slave.fixture.stiffness_N_per_m=600" + sup);
+  ASSERT_EQ(r.exit_code, 0) << r.out << sys.logs();
+  EXPECT_TRUE(st.wait_for(in_force(600.0, 2))) << sys.logs();
+  EXPECT_TRUE(mt.wait_for(in_force(600.0, 2))) << sys.logs();
+}
+
+TEST(SupervisorLive, DiskFullStopsRecordingWithAnAlarmTheNodesGoOnAndTheFileKeepsItsChunks) {
+  TempDir dir;
+  SystemPorts ports;
+  const fs::path sessions = dir.path() / "sessions";
+  System sys(dir, paddles_config(ports, sessions, 0.5));
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
+  TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
+  // 1 MB of room: full after about a second of two nodes' telemetry at 1 kHz.
+  constexpr std::uint64_t kLimit = 1'000'000;
+  sys.start_supervisor_with_file_limit(kLimit);
+  sys.start_nodes();
+  ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
+  ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
+  ASSERT_NO_FATAL_FAILURE(engage_both(sys, ctx, ports, mt, st));
+  // The recorder's error in the status, and a CRITICAL alarm of kind "recorder" saying so.
+  auto alarmed = [](const v1::SupervisorStatus& s) {
+    return std::any_of(s.recent_alarms().begin(), s.recent_alarms().end(), [](const v1::Alarm& a) {
+      return a.kind() == "recorder" && a.severity() == v1::Alarm::CRITICAL;
+    });
+  };
+  std::optional<v1::SupervisorStatus> status;
+  ASSERT_TRUE(eventually(
+      [&] {
+        status = supervisor_status(ctx, ports.request);
+        return status && !status->recording_error().empty() && alarmed(*status);
+      },
+      30s))
+      << (status ? status->DebugString() : std::string()) << sys.logs();
+  // The nodes were not affected: engaged throughout, every cycle in their telemetry.
+  for (const v1::CycleRecord& c : mt.cycles()) {
+    if (c.mode() == v1::ENGAGED) continue;
+    EXPECT_NE(c.mode(), v1::SAFE) << c.DebugString();
+    EXPECT_NE(c.mode(), v1::FAULT) << c.DebugString();
+  }
+  EXPECT_EQ(mt.mode(), v1::ENGAGED);
+  EXPECT_EQ(st.mode(), v1::ENGAGED);
+  // The file: within the limit, and every complete chunk in it is readable.
+  const std::vector<fs::path> files = session_files(sessions);
+  ASSERT_EQ(files.size(), 1u);
+  EXPECT_LE(fs::file_size(files[0]), kLimit);
+  const record::McapReader recovered = record::McapReader::recover(files[0]);
+  EXPECT_GT(recovered.messages().size(), 100u);
 }
 
 }  // namespace

@@ -145,6 +145,14 @@ TEST(ConsoleScreen, EightyByTwentyFourShowsNodesStabilityRecorderAndKeys) {
   EXPECT_EQ(lines.front().find("NO SUMMARY"), std::string::npos);
 }
 
+TEST(ConsoleScreen, ARecorderStoppedByAnErrorSaysSo) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v.status->set_recording_error("write failed: No space left on device");
+  EXPECT_TRUE(contains(render_console(v, 24, 80),
+                       "recorder  STOPPED: teleop-session-20261122-101500.mcap"));
+}
+
 TEST(ConsoleScreen, AStaleOrMissingSummaryIsSaidInTheHeader) {
   ConsoleView v;
   v.status = engaged_status();
