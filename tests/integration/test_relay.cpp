@@ -4,6 +4,8 @@
 // from the nodes' own telemetry timestamps; expected values come from the faults put in, the
 // link rules (30 ms peer timeout) and `teleopctl analyze`.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -211,6 +213,68 @@ TEST(Relay, ABlackoutSendsTheSlaveSafeAtItsPeerTimeout) {
   EXPECT_GE(first_safe->peer_age_ns(), 30'000'000) << first_safe->DebugString();
   EXPECT_LE(first_safe->peer_age_ns(), 32'000'000) << first_safe->DebugString();
   EXPECT_EQ(std::prev(first_safe)->mode(), v1::ENGAGED);
+}
+
+// The cycles at which a node went safe, with the peer age each saw then.
+std::vector<std::int64_t> safe_transitions(const std::vector<v1::CycleRecord>& cycles) {
+  std::vector<std::int64_t> ages;
+  for (std::size_t i = 1; i < cycles.size(); ++i) {
+    if (cycles[i].mode() == v1::SAFE && cycles[i - 1].mode() != v1::SAFE) {
+      ages.push_back(cycles[i].peer_age_ns());
+    }
+  }
+  return ages;
+}
+
+TEST(Relay, CpuLoadOnEveryCoreCountsOverrunsAndNeverSendsANodeSafeWithinItsDeadline) {
+  RelayedSystem sys("", "");
+  ASSERT_NO_FATAL_FAILURE(sys.engage());
+  const std::size_t m0 = sys.mt.cycles().size();
+  const std::size_t s0 = sys.st.cycles().size();
+  const std::uint64_t overruns0 = sys.mt.last()->loop().overruns();
+  // Two busy processes per core for 3 s at normal priority.
+  const long cores = std::max(1L, sysconf(_SC_NPROCESSORS_ONLN));
+  std::vector<pid_t> burners;
+  for (long i = 0; i < 2 * cores; ++i) {
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      const auto until = std::chrono::steady_clock::now() + 3s;
+      volatile std::uint64_t x = 0;
+      while (std::chrono::steady_clock::now() < until) x = x + 1;
+      _exit(0);
+    }
+    burners.push_back(pid);
+  }
+  for (const pid_t pid : burners) ::waitpid(pid, nullptr, 0);
+  // 300 more cycles after the burst, then the verdict from the nodes' own records.
+  const std::size_t m1 = sys.mt.cycles().size();
+  ASSERT_TRUE(eventually([&] { return sys.mt.cycles().size() > m1 + 300; })) << sys.logs();
+  const std::vector<v1::CycleRecord> mc = sys.mt.cycles();
+  const std::vector<v1::CycleRecord> sc = sys.st.cycles();
+  // Safe only through a peer timeout: if either node went safe, one of them did so having
+  // heard nothing from its peer for 30 ms (the other may follow its safe peer at once).
+  std::vector<std::int64_t> ages =
+      safe_transitions({mc.begin() + static_cast<std::ptrdiff_t>(m0), mc.end()});
+  const std::vector<std::int64_t> slave_ages =
+      safe_transitions({sc.begin() + static_cast<std::ptrdiff_t>(s0), sc.end()});
+  ages.insert(ages.end(), slave_ages.begin(), slave_ages.end());
+  if (!ages.empty()) {
+    EXPECT_GE(*std::max_element(ages.begin(), ages.end()), 30'000'000)
+        << "a node went safe under load without a peer timeout";
+  }
+  // Overruns are counted in the node's loop statistics and the supervisor's summary carries
+  // the same count.
+  const std::uint64_t overruns = sys.mt.last()->loop().overruns();
+  std::optional<v1::SupervisorStatus> status;
+  ASSERT_TRUE(eventually([&] {
+    status = supervisor_status(sys.ctx, sys.request_port());
+    return status && status->master().loop().overruns() >= overruns;
+  })) << sys.logs();
+  std::cout << "master overruns during the burst: " << overruns - overruns0 << ", wake-up p99 "
+            << sys.mt.last()->loop().wakeup_p99_ns() << " ns, modes now "
+            << v1::NodeMode_Name(*sys.mt.mode()) << "/" << v1::NodeMode_Name(*sys.st.mode())
+            << "\n";
 }
 
 }  // namespace
