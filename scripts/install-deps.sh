@@ -5,7 +5,7 @@ packages=(
   build-essential cmake ninja-build pkg-config clang libclang-rt-14-dev clang-format
   libeigen3-dev libprotobuf-dev protobuf-compiler libzmq3-dev cppzmq-dev libusb-1.0-0-dev
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev zlib1g-dev
-  libgtest-dev libgmock-dev libbenchmark-dev rt-tests libncurses-dev tmux
+  libgtest-dev libgmock-dev libbenchmark-dev rt-tests libncurses-dev tmux jq
 )
 missing=()
 for p in "${packages[@]}"; do

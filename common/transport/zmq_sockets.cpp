@@ -60,6 +60,7 @@ zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoi
   set_reconnect(socket);
   // Not ZMQ_CONFLATE (see the header: libzmq 4.3.4 strands and leaks with it on a SUB).
   socket.set(zmq::sockopt::rcvhwm, kStateReceiveHwm);
+  socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
   socket.set(zmq::sockopt::subscribe, "");
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kClient, security);
   socket.connect(std::string(endpoint));
@@ -70,6 +71,7 @@ zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint
                                   const LinkSecurity& security) {
   zmq::socket_t socket(ctx, zmq::socket_type::rep);
   set_common(socket);
+  socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
   socket.bind(std::string(endpoint));
   return socket;

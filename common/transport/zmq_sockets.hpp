@@ -38,6 +38,7 @@
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -54,6 +55,11 @@ inline constexpr std::chrono::milliseconds kReconnectInterval{10};
 inline constexpr std::chrono::milliseconds kReconnectIntervalMax{100};
 // The subscriber's queue: far more than arrives between two drains of a link thread.
 inline constexpr int kStateReceiveHwm = 1000;
+// The largest message a node state subscriber or a command server accepts, bytes: every
+// message of ours is far smaller (a NodeState ~100 B, a command or supervisor request < 1 KiB).
+// libzmq drops the connection of a peer that sends a larger one before allocating it, so an
+// oversized frame never costs the receiver its memory nor reaches a parser.
+inline constexpr std::int64_t kMaxInboundMessageBytes = 64 * 1024;
 
 // A PUB bound to `endpoint` (server side of the security policy); "tcp://127.0.0.1:*" picks a
 // free port, read back with bound_endpoint(). Throws std::invalid_argument when the policy

@@ -104,6 +104,7 @@ class RelayedSystem {
   }
   [[nodiscard]] const fs::path& config() const { return config_; }
   [[nodiscard]] int request_port() const { return ports_.request; }
+  [[nodiscard]] int master_command_port() const { return ports_.nodes.master_command; }
   [[nodiscard]] std::string logs() const {
     return "--- master\n" + master_->log() + "--- slave\n" + slave_->log() + "--- supervisor\n" +
            supervisor_->log() + "--- relay master->slave\n" + relay_ms_->log() +
@@ -275,6 +276,42 @@ TEST(Relay, CpuLoadOnEveryCoreCountsOverrunsAndNeverSendsANodeSafeWithinItsDeadl
             << sys.mt.last()->loop().wakeup_p99_ns() << " ns, modes now "
             << v1::NodeMode_Name(*sys.mt.mode()) << "/" << v1::NodeMode_Name(*sys.st.mode())
             << "\n";
+}
+
+TEST(Relay, OversizedFramesAndAConnectionFloodNeverReachTheLawAndTheNodeGoesOn) {
+  RelayedSystem sys("", "");
+  ASSERT_NO_FATAL_FAILURE(sys.engage());
+  const std::size_t from = sys.mt.cycles().size();
+  const std::string command = tcp(sys.master_command_port());
+  // 10 MB frames at the master's command endpoint (its limit is 64 KiB): libzmq drops each
+  // connection before the frame is allocated; nothing is answered.
+  for (int i = 0; i < 5; ++i) {
+    zmq::socket_t s(sys.ctx, zmq::socket_type::req);
+    s.set(zmq::sockopt::linger, 0);
+    s.set(zmq::sockopt::rcvtimeo, 200);
+    s.connect(command);
+    const std::string huge(10'000'000, 'x');
+    (void)s.send(zmq::buffer(huge), zmq::send_flags::none);
+    zmq::message_t reply;
+    EXPECT_FALSE(s.recv(reply).has_value()) << "an oversized command was answered";
+  }
+  // A flood of connections that each open and close at once.
+  for (int i = 0; i < 300; ++i) {
+    zmq::socket_t s(sys.ctx, zmq::socket_type::req);
+    s.set(zmq::sockopt::linger, 0);
+    s.connect(command);
+  }
+  // The node still answers a real command, and stayed engaged every cycle meanwhile.
+  const auto r = send_command(sys.ctx, command, v1::NodeCommand::STATUS);
+  ASSERT_TRUE(r.has_value()) << sys.logs();
+  EXPECT_EQ(r->mode(), v1::ENGAGED);
+  const std::size_t now = sys.mt.cycles().size();
+  ASSERT_TRUE(eventually([&] { return sys.mt.cycles().size() > now + 100; })) << sys.logs();
+  const std::vector<v1::CycleRecord> cycles = sys.mt.cycles();
+  for (std::size_t i = from; i < cycles.size(); ++i) {
+    ASSERT_EQ(cycles[i].mode(), v1::ENGAGED) << "cycle " << cycles[i].sequence();
+  }
+  EXPECT_EQ(sys.mt.last()->cycles_dropped(), 0u);
 }
 
 }  // namespace
