@@ -77,6 +77,27 @@ inline std::string node_section(const Ports& p, bool master, const std::string& 
          extra + " }";
 }
 
+// The paper's paddles at 1 kHz (the live tests' system): the two device sections with the
+// given node sections and slave extras (a fixture), the paper's gains, a fixed human pushing
+// `push_N` from engagement on, a 20 ms engage ramp. The caller appends the rest (supervisor).
+inline std::string paddles_system(const std::string& master_node, const std::string& slave_node,
+                                  const std::string& slave_extra, double push_N) {
+  return "sample_rate_hz: 1000\n"
+         "master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } " +
+         master_node +
+         " }\n"
+         "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } " +
+         slave_extra + " " + slave_node +
+         " }\n"
+         "gains { kpm: 600 kps: 600 kdm: 2 kds: 2 }\n"
+         "velocity_filter { cutoff_hz: 200 }\n"
+         "human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }\n"
+         "scene { duration_s: 3 seed: 1 human_force { constant { force_N: " +
+         std::to_string(push_N) +
+         " } } }\n"
+         "link { engage_ramp_ms: 20 }\n";
+}
+
 class TempDir {
  public:
   TempDir() {

@@ -148,23 +148,11 @@ struct SystemPorts {
 constexpr double kFixture = 1000.0;
 
 std::string system_config(const SystemPorts& p, const fs::path& record_dir) {
-  return "sample_rate_hz: 1000\n"
-         "round_trip_delay_samples: 2\n"
-         "master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } " +
-         node_section(p.nodes, true, "", 80) +
-         " }\n"
-         "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } "
-         "fixture { stiffness_N_per_m: 1000 position_m: 0.005 } " +
-         node_section(p.nodes, false, "", 80) +
-         " }\n"
-         "gains { kpm: 600 kps: 600 kdm: 2 kds: 2 }\n"
-         "velocity_filter { cutoff_hz: 200 }\n"
-         "human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }\n"
-         "scene { duration_s: 3 seed: 1 human_force { constant { force_N: 0.5 } } }\n"
-         "link { engage_ramp_ms: 20 }\n"
-         "supervisor { report_endpoint: \"" +
-         tcp(p.report) + "\" request_endpoint: \"" + tcp(p.request) + "\" record_dir: \"" +
-         record_dir.string() + "\" }\n";
+  return "round_trip_delay_samples: 2\n" +
+         paddles_system(node_section(p.nodes, true, "", 80), node_section(p.nodes, false, "", 80),
+                        "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }", 0.5) +
+         "supervisor { report_endpoint: \"" + tcp(p.report) + "\" request_endpoint: \"" +
+         tcp(p.request) + "\" record_dir: \"" + record_dir.string() + "\" }\n";
 }
 
 bool linked(const v1::Telemetry& t) { return t.link().accepted() > 0; }

@@ -35,21 +35,10 @@ std::string relay_config(const RelayPorts& p) {
     const int relay = master ? p.slave_to_master : p.master_to_slave;
     return node_section(p.nodes, master, "peer_state_endpoint: \"" + tcp(relay) + "\"", 80);
   };
-  return "sample_rate_hz: 1000\n"
-         "master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } " +
-         node(true) +
-         " }\n"
-         "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } "
-         "fixture { stiffness_N_per_m: 1000 position_m: 0.005 } " +
-         node(false) +
-         " }\n"
-         "gains { kpm: 600 kps: 600 kdm: 2 kds: 2 }\n"
-         "velocity_filter { cutoff_hz: 200 }\n"
-         "human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }\n"
-         "scene { duration_s: 3 seed: 1 human_force { constant { force_N: 0.5 } } }\n"
-         "link { engage_ramp_ms: 20 }\n"
-         "supervisor { report_endpoint: \"" +
-         tcp(p.report) + "\" request_endpoint: \"" + tcp(p.request) + "\" record: false }\n";
+  return paddles_system(node(true), node(false),
+                        "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }", 0.5) +
+         "supervisor { report_endpoint: \"" + tcp(p.report) + "\" request_endpoint: \"" +
+         tcp(p.request) + "\" record: false }\n";
 }
 
 class RelayedSystem {

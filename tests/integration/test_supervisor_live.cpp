@@ -45,20 +45,8 @@ std::string supervisor_section(const SystemPorts& p, const fs::path& record_dir,
 // the slave section.
 std::string paddles_config(const SystemPorts& p, const fs::path& record_dir, double push_N,
                            const std::string& slave_fixture = "", const std::string& extra = "") {
-  return "sample_rate_hz: 1000\n"
-         "master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } " +
-         node_section(p.nodes, true, "", 80) +
-         " }\n"
-         "slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } " +
-         slave_fixture + " " + node_section(p.nodes, false, "", 80) +
-         " }\n"
-         "gains { kpm: 600 kps: 600 kdm: 2 kds: 2 }\n"
-         "velocity_filter { cutoff_hz: 200 }\n"
-         "human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }\n"
-         "scene { duration_s: 3 seed: 1 human_force { constant { force_N: " +
-         std::to_string(push_N) +
-         " } } }\n"
-         "link { engage_ramp_ms: 20 }\n" +
+  return paddles_system(node_section(p.nodes, true, "", 80), node_section(p.nodes, false, "", 80),
+                        slave_fixture, push_N) +
          supervisor_section(p, record_dir) + extra;
 }
 
