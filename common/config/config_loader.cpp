@@ -827,10 +827,23 @@ void collect_set_fields(const pb::Message& message, const std::string& prefix,
               (index < 0 ? r->GetEnum(message, field) : r->GetRepeatedEnum(message, field, index))
                   ->name();
           break;
-        case pb::FieldDescriptor::CPPTYPE_STRING:
-          value += index < 0 ? r->GetString(message, field)
-                             : r->GetRepeatedString(message, field, index);
+        case pb::FieldDescriptor::CPPTYPE_STRING: {
+          const std::string text = index < 0 ? r->GetString(message, field)
+                                             : r->GetRepeatedString(message, field, index);
+          // What PATH=VALUE cannot say: the value is trimmed, and repeated values are split at
+          // commas (an empty element cannot be written either). Refused, never changed.
+          const bool edge_space =
+              !text.empty() && (std::isspace(static_cast<unsigned char>(text.front())) != 0 ||
+                                std::isspace(static_cast<unsigned char>(text.back())) != 0);
+          if (edge_space || (index >= 0 && (text.empty() || text.find(',') != std::string::npos))) {
+            throw std::invalid_argument(
+                path + ": the string \"" + text +
+                "\" cannot be written as PATH=VALUE (leading or trailing space, or a comma or "
+                "an empty element in a repeated value)");
+          }
+          value += text;
           break;
+        }
         case pb::FieldDescriptor::CPPTYPE_MESSAGE:
           break;
       }

@@ -99,7 +99,9 @@ struct FieldAssignment {
 // Every field that is set, depth-first in field-number order: scalars with a value (proto3
 // plain scalars equal to 0 count as unset), repeated scalars as comma lists, and sections that
 // are present but empty as "{}". Applying these to an empty configuration reproduces it; values
-// round-trip exactly.
+// round-trip exactly. A string PATH=VALUE cannot express (leading or trailing whitespace, which
+// an override trims; a comma or an empty element in a repeated string, which it splits on) is
+// refused with std::invalid_argument naming the field, never written changed.
 [[nodiscard]] std::vector<FieldAssignment> set_fields(const teleop::v1::SystemConfig& config);
 
 }  // namespace teleop::config

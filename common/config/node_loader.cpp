@@ -90,6 +90,12 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
 
   NodeSetup out;
   const double rate_hz = s.teleop.sample_rate_hz;
+  // A node's loop: 1 Hz to 100 kHz (the analyser's range; its period in whole nanoseconds).
+  if (!(rate_hz >= 1.0 && rate_hz <= 100000.0)) {
+    throw ConfigError(config.source_name +
+                      ": sample_rate_hz: a node runs at 1 Hz to 100 kHz, got " +
+                      std::to_string(rate_hz));
+  }
   out.settings.role = role;
   out.settings.period =
       std::chrono::nanoseconds(static_cast<long long>(std::llround(1e9 / rate_hz)));
@@ -107,6 +113,17 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
                                           link.safe_ramp_ms(), 10.0, true);
   const double engage_ms = value_or_default(p, "link.engage_ramp_ms", link.has_engage_ramp_ms(),
                                             link.engage_ramp_ms(), 200.0, true);
+  // Times a node can hold in integer nanoseconds and a loop can keep: a peer timeout of at
+  // least one period and at most a minute; ramps of at most a minute.
+  const double period_ms = 1e3 / rate_hz;
+  if (link.has_peer_timeout_ms() && timeout_ms > 0.0 &&
+      !(timeout_ms >= period_ms && timeout_ms <= 60000.0)) {
+    p.add("link.peer_timeout_ms", "must be in [one period (" + std::to_string(period_ms) +
+                                      " ms), 60000], got " + std::to_string(timeout_ms));
+  }
+  if (engage_ms > 60000.0) {
+    p.add("link.engage_ramp_ms", "must be <= 60000, got " + std::to_string(engage_ms));
+  }
   out.settings.machine.peer_timeout = from_ms(timeout_ms);
   out.settings.machine.engage_ramp = from_ms(engage_ms);
   out.settings.safe_ramp = from_ms(safe_ms);

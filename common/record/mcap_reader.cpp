@@ -482,8 +482,18 @@ void McapReader::scan(bool recovering) {
           for (auto& [id, ch] : new_channels) channels_[id] = std::move(ch);
           for (const auto& [channel, time] : times) count(channel, time);
           ChunkIndex ci{};
+          // The times the chunk holds, not the ones its header claims: a header whose start lies
+          // after its messages would otherwise put them out of log-time order.
           ci.message_start_time = v.start;
           ci.message_end_time = v.end;
+          if (!times.empty()) {
+            ci.message_start_time = times.front().second;
+            ci.message_end_time = times.front().second;
+            for (const auto& [channel, time] : times) {
+              ci.message_start_time = std::min(ci.message_start_time, time);
+              ci.message_end_time = std::max(ci.message_end_time, time);
+            }
+          }
           ci.chunk_start_offset = f.offset;
           ci.chunk_length = f.end() - f.offset;
           ci.compressed_size = v.records.size();
@@ -596,6 +606,14 @@ void McapReader::for_each_message(Order order,
       for_each_record(c.records, c.records_offset, [&](const Frame& inner) {
         if (inner.op == static_cast<std::uint8_t>(Op::kMessage)) {
           out.push_back(view(parse_message(inner), g.offset, inner.offset));
+          // A chunk whose index says it starts after its own messages is damaged: read in
+          // log-time order they would come out of order. Refused in either order, naming it.
+          if (out.back().log_time_ns < g.start) {
+            bad(path_, inner.offset,
+                "Message at log time " + std::to_string(out.back().log_time_ns) +
+                    ", before the start its chunk index declares (" + std::to_string(g.start) +
+                    ")");
+          }
         }
       });
     } catch (const Truncated& t) {
@@ -637,6 +655,7 @@ void McapReader::for_each_message(Order order,
       std::stable_sort(
           o.messages.begin(), o.messages.end(),
           [](const MessageView& a, const MessageView& b) { return a.log_time_ns < b.log_time_ns; });
+
       heap.emplace(o.messages[0].log_time_ns, o.offset, 0, open.size());
       open.push_back(std::move(o));
     }
