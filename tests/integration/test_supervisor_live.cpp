@@ -983,12 +983,17 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   EXPECT_NEAR(json_limit, analyzed, 1e-3 * analyzed);
   EXPECT_EQ(j["masterAlive"], true);
   EXPECT_EQ(j["slaveAlive"], true);
-  // The node summaries: the mode each node reports, its loop at the configured 1 kHz (the
-  // measured rate, to 2 %), the fixture in force and a position within what the node sent.
+  // The node summaries: the mode each node reports, its loop at the configured 1 kHz, the
+  // fixture in force and a position within what the node sent.
   EXPECT_EQ(j["master"]["mode"], "ENGAGED") << j.dump();
   EXPECT_EQ(j["slave"]["mode"], "ENGAGED") << j.dump();
-  EXPECT_NEAR(j["master"]["loopRateHz"].get<double>(), 1000.0, 20.0);
-  EXPECT_NEAR(j["slave"]["loopRateHz"].get<double>(), 1000.0, 20.0);
+  // Cycles run per second: never above the configured 1 kHz; below it only by the deadlines
+  // an overrun skipped (up to 10 % under the sanitizer build's slower code).
+  for (const char* side : {"master", "slave"}) {
+    const double rate = j[side]["loopRateHz"].get<double>();
+    EXPECT_LE(rate, 1000.0 * 1.001) << side;
+    EXPECT_GE(rate, 900.0) << side;
+  }
   EXPECT_DOUBLE_EQ(j["slave"]["active"]["slaveFixtureStiffnessNPerM"].get<double>(),
                    st.last()->active().slave_fixture_stiffness_n_per_m());
   const std::vector<v1::CycleRecord> cycles = mt.cycles();
