@@ -34,4 +34,10 @@ const std::string& ArgCursor::value(const char* flag) {
   return args_[++i_];
 }
 
+int parse_timeout_ms(const std::string& text) {
+  const double t = parse_number(text, "--timeout-ms");
+  if (!(t >= 1.0 && t <= 60000.0)) throw UsageError("--timeout-ms must be in [1, 60000]");
+  return static_cast<int>(t);
+}
+
 }  // namespace teleop::ctl

@@ -22,6 +22,9 @@ inline constexpr int kExitUsage = 2;
 
 // A finite number, the whole of `text`; otherwise UsageError naming `what`.
 [[nodiscard]] double parse_number(const std::string& text, const std::string& what);
+// --timeout-ms: whole milliseconds in [1, 60000] (0 or less would mean "never wait" or "wait
+// for ever" to ZeroMQ).
+[[nodiscard]] int parse_timeout_ms(const std::string& text);
 [[nodiscard]] std::vector<std::string> split(const std::string& s, char separator);
 
 // Walks the arguments; value() takes the one after the current flag.

@@ -138,9 +138,7 @@ int run_node_command(const std::vector<std::string>& args, std::ostream& out, st
     } else if (a == "--server-key") {
       keys.server_key = cur.value("--server-key");
     } else if (a == "--timeout-ms") {
-      const double t = parse_number(cur.value("--timeout-ms"), "--timeout-ms");
-      if (!(t >= 1.0 && t <= 60000.0)) throw UsageError("--timeout-ms must be in [1, 60000]");
-      timeout_ms = static_cast<int>(t);
+      timeout_ms = parse_timeout_ms(cur.value("--timeout-ms"));
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
     } else {

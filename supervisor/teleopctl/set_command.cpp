@@ -30,6 +30,22 @@ std::optional<v1::SupervisorReply> supervisor_request(const std::string& endpoin
   return reply;
 }
 
+bool SupervisorClientFlags::take(ArgCursor& cur) {
+  const std::string& a = cur.arg();
+  if (a == "--supervisor") {
+    endpoint = to_endpoint(cur.value("--supervisor"));
+  } else if (a == "--key") {
+    key = cur.value("--key");
+  } else if (a == "--server-key") {
+    server_key = cur.value("--server-key");
+  } else if (a == "--timeout-ms") {
+    timeout_ms = parse_timeout_ms(cur.value("--timeout-ms"));
+  } else {
+    return false;
+  }
+  return true;
+}
+
 std::pair<std::string, double> parse_setting(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos) throw UsageError("expected PATH=VALUE, got '" + text + "'");
@@ -81,23 +97,14 @@ std::string set_usage() {
 int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::pair<std::string, double>> sets;
   bool dry_run = false;
-  std::string endpoint = "tcp://127.0.0.1:5567";
-  std::string key;
-  std::string server_key;
-  int timeout_ms = 5000;
+  SupervisorClientFlags sup;
+  sup.timeout_ms = 5000;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
     if (a == "--dry-run") {
       dry_run = true;
-    } else if (a == "--supervisor") {
-      endpoint = to_endpoint(cur.value("--supervisor"));
-    } else if (a == "--key") {
-      key = cur.value("--key");
-    } else if (a == "--server-key") {
-      server_key = cur.value("--server-key");
-    } else if (a == "--timeout-ms") {
-      timeout_ms = static_cast<int>(parse_number(cur.value("--timeout-ms"), "--timeout-ms"));
+    } else if (sup.take(cur)) {
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
     } else {
@@ -109,17 +116,19 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     // The gains in force, so that a change of one gain keeps the others.
     v1::SupervisorRequest status;
     status.mutable_status();
-    const auto now = supervisor_request(endpoint, status, timeout_ms, key, server_key);
+    const auto now =
+        supervisor_request(sup.endpoint, status, sup.timeout_ms, sup.key, sup.server_key);
     if (!now) {
-      err << "teleopctl set: no reply from the supervisor at " << endpoint << "\n";
+      err << "teleopctl set: no reply from the supervisor at " << sup.endpoint << "\n";
       return kExitNoReply;
     }
     v1::SupervisorRequest req;
     *req.mutable_change() =
         make_change_request(sets, now->status().report().gains(), dry_run, "teleopctl set");
-    const auto reply = supervisor_request(endpoint, req, timeout_ms, key, server_key);
+    const auto reply =
+        supervisor_request(sup.endpoint, req, sup.timeout_ms, sup.key, sup.server_key);
     if (!reply) {
-      err << "teleopctl set: no reply from the supervisor at " << endpoint << "\n";
+      err << "teleopctl set: no reply from the supervisor at " << sup.endpoint << "\n";
       return kExitNoReply;
     }
     if (!reply->error().empty()) {

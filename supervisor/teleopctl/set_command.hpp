@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "supervisor/teleopctl/cli_args.hpp"
 #include "teleop/v1/supervisor.pb.h"
 
 namespace teleop::ctl {
@@ -22,6 +23,17 @@ namespace teleop::ctl {
     const std::vector<std::pair<std::string, double>>& settings, const v1::Gains& gains_in_force,
     bool dry_run, const std::string& requested_by);
 int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// Where and how a client reaches the supervisor: --supervisor HOST:PORT (request endpoint),
+// --key FILE (this client's key pair), --server-key KEY|FILE, --timeout-ms N.
+struct SupervisorClientFlags {
+  std::string endpoint{"tcp://127.0.0.1:5567"};
+  std::string key{};
+  std::string server_key{};
+  int timeout_ms{2000};
+  // Takes the cursor's current flag (and its value) if it is one of these; false otherwise.
+  bool take(ArgCursor& cur);
+};
 
 // One request to the supervisor; nullopt when no reply came within timeout_ms.
 [[nodiscard]] std::optional<v1::SupervisorReply> supervisor_request(

@@ -40,9 +40,7 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
     } else if (a == "--key") {
       key = cur.value("--key");
     } else if (a == "--timeout-ms") {
-      const double t = parse_number(cur.value("--timeout-ms"), "--timeout-ms");
-      if (!(t >= 1.0 && t <= 60000.0)) throw UsageError("--timeout-ms must be in [1, 60000]");
-      timeout_ms = static_cast<int>(t);
+      timeout_ms = parse_timeout_ms(cur.value("--timeout-ms"));
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
     } else if (config_path.empty()) {
@@ -95,23 +93,13 @@ std::string status_usage() {
 
 int run_status(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   bool json = false;
-  std::string endpoint = "tcp://127.0.0.1:5567";
-  std::string key;
-  std::string server_key;
-  int timeout_ms = 2000;
+  SupervisorClientFlags sup;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
     if (a == "--json") {
       json = true;
-    } else if (a == "--supervisor") {
-      endpoint = to_endpoint(cur.value("--supervisor"));
-    } else if (a == "--key") {
-      key = cur.value("--key");
-    } else if (a == "--server-key") {
-      server_key = cur.value("--server-key");
-    } else if (a == "--timeout-ms") {
-      timeout_ms = static_cast<int>(parse_number(cur.value("--timeout-ms"), "--timeout-ms"));
+    } else if (sup.take(cur)) {
     } else {
       throw UsageError("unknown argument '" + a + "'");
     }
@@ -119,10 +107,11 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
   return run_guarded("status", err, [&]() -> int {
     v1::SupervisorRequest req;
     req.mutable_status();
-    const auto reply = supervisor_request(endpoint, req, timeout_ms, key, server_key);
+    const auto reply =
+        supervisor_request(sup.endpoint, req, sup.timeout_ms, sup.key, sup.server_key);
     if (!reply) {
-      err << "teleopctl status: no reply from the supervisor at " << endpoint << " within "
-          << timeout_ms << " ms\n";
+      err << "teleopctl status: no reply from the supervisor at " << sup.endpoint << " within "
+          << sup.timeout_ms << " ms\n";
       return kExitNoReply;
     }
     const v1::SupervisorStatus& s = reply->status();
