@@ -15,6 +15,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -22,6 +23,7 @@
 #include <map>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -35,19 +37,32 @@ namespace teleop::test {
 
 using namespace std::chrono_literals;
 
-// A free TCP port on 127.0.0.1 (the kernel's choice; released for the node to bind).
+// A TCP port on 127.0.0.1 that is free now and that this process has not handed out before.
+// Picked below the kernel's ephemeral range (32768-60999 on Debian), so that no outgoing
+// connection of a node can take it between the pick and the node's bind, and never twice in
+// one process: bind(port 0) may hand the same port out again once it has been closed, which
+// once gave the relay and the master's command server the same port.
 inline int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = 0;
-  if (::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) != 0) std::abort();
-  socklen_t len = sizeof(a);
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len);
-  const int port = ntohs(a.sin_port);
-  ::close(fd);
-  return port;
+  static std::mutex mutex;
+  static std::set<int> handed_out;
+  static unsigned next = 20000u + static_cast<unsigned>(::getpid()) * 7919u % 12000u;
+  const std::lock_guard<std::mutex> lock{mutex};
+  for (int tries = 0; tries < 12000; ++tries) {
+    const int port = 20000 + static_cast<int>(next++ % 12000u);
+    if (handed_out.count(port) != 0) continue;
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(static_cast<std::uint16_t>(port));
+    const bool free = ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)) == 0;
+    ::close(fd);
+    if (free) {
+      handed_out.insert(port);
+      return port;
+    }
+  }
+  std::abort();
 }
 
 struct Ports {
