@@ -66,13 +66,15 @@ dir=$(mktemp -d /tmp/teleop-soak-XXXXXX)
   >"$dir/launch.log" 2>&1 &
 launch=$!
 rss() { ps -o rss= -p "$(pgrep -f "$1 .*examples/live.textproto" | head -n 1)" 2>/dev/null | tr -d ' '; }
+# Resident memory of each process every 5 s (after 5 s of start-up) into rss.csv.
+echo "t_s,teleop-master,teleop-slave,teleop-supervisor" >"$dir/rss.csv"
 sleep 5
-declare -A rss0
-for p in teleop-master teleop-slave teleop-supervisor; do rss0[$p]=$(rss "$p"); done
-sleep $((SOAK_S > 8 ? SOAK_S - 8 : 1))
+start_s=$SECONDS
+while (( SECONDS - start_s < SOAK_S - 8 )); do
+  echo "$((SECONDS - start_s)),$(rss teleop-master),$(rss teleop-slave),$(rss teleop-supervisor)" >>"$dir/rss.csv"
+  sleep 5
+done
 "$ctl" status --json >"$dir/status.json" 2>/dev/null
-declare -A rss1
-for p in teleop-master teleop-slave teleop-supervisor; do rss1[$p]=$(rss "$p"); done
 wait "$launch"
 launch_rc=$?
 file=$(ls "$dir"/sessions/*.mcap 2>/dev/null | head -n 1)
@@ -87,11 +89,26 @@ else
       "$dir/status.json" | tee -a "$dir/report.txt"
   done
   missing=$(grep -Eo '[0-9]+ missing' "$dir/summary.txt" | awk '{s += $1} END {print s + 0}')
-  for p in teleop-master teleop-slave teleop-supervisor; do
-    echo "$p RSS ${rss0[$p]:-?} kB -> ${rss1[$p]:-?} kB" | tee -a "$dir/report.txt"
+  # The recording's own histograms of every cycle: wake-up latency and skipped deadlines.
+  grep -E "wake-up latency|overruns .* in .* s" "$dir/summary.txt" | sed 's/^ *//' | tee -a "$dir/report.txt"
+  # Memory: first and last sample, and the least-squares slope over the second half of the
+  # samples (start-up allocations excluded); growth is a slope above 100 kB/min.
+  growth=0
+  for col in 2 3 4; do
+    name=$(head -n 1 "$dir/rss.csv" | cut -d, -f"$col")
+    line=$(awk -F, -v c="$col" 'NR > 1 && $c != "" { t[n] = $1; r[n] = $c; n++ }
+      END {
+        if (n < 2) { print "? ? 0 0"; exit }
+        h = int(n / 2); sx = sy = sxx = sxy = 0; m = n - h
+        for (i = h; i < n; i++) { sx += t[i]; sy += r[i]; sxx += t[i] * t[i]; sxy += t[i] * r[i] }
+        d = m * sxx - sx * sx; slope = (m > 1 && d != 0) ? (m * sxy - sx * sy) / d * 60 : 0
+        printf "%s %s %.1f %d\n", r[0], r[n - 1], slope, n }' "$dir/rss.csv")
+    read -r first last slope samples <<<"$line"
+    echo "$name RSS $first kB -> $last kB, slope over the second half $slope kB/min ($samples samples)" | tee -a "$dir/report.txt"
+    awk -v s="$slope" 'BEGIN { exit !(s > 100) }' && growth=1
   done
   note "soak ${SOAK_S} s: recorder drops $drops, missing cycles in the file $missing; $(paste -sd ';' "$dir/report.txt")"
-  [[ "$drops" == "0" && "$missing" == "0" ]] || failed=1
+  [[ "$drops" == "0" && "$missing" == "0" && $growth == 0 ]] || failed=1
 fi
 
 echo

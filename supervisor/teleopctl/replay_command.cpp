@@ -14,6 +14,7 @@
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -21,6 +22,7 @@
 #include <optional>
 #include <ostream>
 #include <stdexcept>
+#include <vector>
 #include <zmq.hpp>
 
 #include "common/config/config_loader.hpp"
@@ -277,14 +279,31 @@ struct SideStats {
   std::uint64_t session_id{0};
   bool any{false};
   std::map<std::string, std::uint64_t> modes{};
+  // Wake-up latency of every cycle, and per second of the node's clock its cycles and the
+  // deadlines it skipped (overruns: a cycle's sample time is its deadline on the loop's grid,
+  // so a gap of n periods means n - 1 skipped; within one session).
+  std::vector<std::int64_t> wakeups_ns{};
+  std::map<std::int64_t, std::pair<std::uint64_t, std::uint64_t>> per_second{};
+  std::int64_t last_sample_ns{0};
 
   void add(const v1::Telemetry& t) {
     ++messages;
     cycles_dropped = std::max(cycles_dropped, t.cycles_dropped());
     if (t.flight_record_size() > 0) ++flight_records;
+    const double period_ns = t.loop().period_s() * 1e9;
     for (const v1::CycleRecord& c : t.cycles()) {
       ++cycles;
       ++modes[v1::NodeMode_Name(c.mode())];
+      wakeups_ns.push_back(c.wakeup_latency_ns());
+      auto& second = per_second[c.sample_time_ns() / 1'000'000'000];
+      ++second.first;
+      if (any && t.session_id() == session_id && c.sequence() == last_sequence + 1 &&
+          period_ns > 0.0 && c.sample_time_ns() > last_sample_ns) {
+        const double periods = static_cast<double>(c.sample_time_ns() - last_sample_ns) / period_ns;
+        const auto skipped = static_cast<std::int64_t>(std::llround(periods)) - 1;
+        if (skipped > 0) second.second += static_cast<std::uint64_t>(skipped);
+      }
+      last_sample_ns = c.sample_time_ns();
       if (!any) {
         first_sequence = c.sequence();
         session_id = t.session_id();
@@ -310,7 +329,67 @@ struct SideStats {
             {"flight_records", flight_records},
             {"first_sequence", any ? json(first_sequence) : json(nullptr)},
             {"last_sequence", any ? json(last_sequence) : json(nullptr)},
-            {"modes", modes}};
+            {"modes", modes},
+            {"wakeup_latency", wakeup_json()},
+            {"overruns", overruns_json()}};
+  }
+  // Nearest-rank quantiles and a histogram of every cycle's wake-up latency.
+  [[nodiscard]] json wakeup_json() const {
+    if (wakeups_ns.empty()) return nullptr;
+    std::vector<std::int64_t> v = wakeups_ns;
+    std::sort(v.begin(), v.end());
+    const auto quantile_us = [&v](double q) {
+      const auto rank = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
+      return static_cast<double>(v[std::clamp<std::size_t>(rank, 1, v.size()) - 1]) * 1e-3;
+    };
+    json bins = json::array();
+    const std::int64_t edges_us[] = {0, 50, 100, 200, 500, 1000, 2000, 5000};
+    const std::size_t n = std::size(edges_us);
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::int64_t lo = edges_us[i] * 1000;
+      const bool last = i + 1 == n;
+      const std::int64_t hi = last ? 0 : edges_us[i + 1] * 1000;
+      const auto from = std::lower_bound(v.begin(), v.end(), lo);
+      const auto to = last ? v.end() : std::lower_bound(v.begin(), v.end(), hi);
+      bins.push_back({{"from_us", edges_us[i]},
+                      {"to_us", last ? json(nullptr) : json(edges_us[i + 1])},
+                      {"cycles", static_cast<std::uint64_t>(to - from)}});
+    }
+    // Negative latencies (a clock step) are not binned above; counted apart.
+    const auto negative = static_cast<std::uint64_t>(
+        std::lower_bound(v.begin(), v.end(), std::int64_t{0}) - v.begin());
+    return {{"p50_us", quantile_us(0.5)},
+            {"p99_us", quantile_us(0.99)},
+            {"p999_us", quantile_us(0.999)},
+            {"max_us", static_cast<double>(v.back()) * 1e-3},
+            {"histogram", bins},
+            {"negative", negative}};
+  }
+  // Skipped deadlines in all, and how many seconds (with at least one cycle recorded) had how
+  // many.
+  [[nodiscard]] json overruns_json() const {
+    std::uint64_t total = 0;
+    std::uint64_t worst = 0;
+    const std::uint64_t edges[] = {0, 1, 2, 10, 100};
+    std::vector<std::uint64_t> seconds(std::size(edges), 0);
+    for (const auto& [second, counts] : per_second) {
+      total += counts.second;
+      worst = std::max(worst, counts.second);
+      std::size_t bin = 0;
+      while (bin + 1 < std::size(edges) && counts.second >= edges[bin + 1]) ++bin;
+      ++seconds[bin];
+    }
+    json bins = json::array();
+    for (std::size_t i = 0; i < std::size(edges); ++i) {
+      const bool last = i + 1 == std::size(edges);
+      bins.push_back({{"from", edges[i]},
+                      {"to", last ? json(nullptr) : json(edges[i + 1] - 1)},
+                      {"seconds", seconds[i]}});
+    }
+    return {{"total", total},
+            {"seconds", per_second.size()},
+            {"worst_second", worst},
+            {"seconds_histogram", bins}};
   }
 };
 
@@ -479,6 +558,38 @@ void print_summary(const json& j, std::ostream& out) {
         n["last_sequence"].get<std::uint64_t>(), n["cycles_missing"].get<std::uint64_t>(),
         n["restarts"].get<std::uint64_t>(), n["cycles_dropped_by_node"].get<std::uint64_t>(),
         n["telemetry_messages"].get<std::uint64_t>(), modes);
+  }
+  for (const char* side : {"master", "slave"}) {
+    const json& w = j["nodes"][side]["wakeup_latency"];
+    if (w.is_null()) continue;
+    std::string bins;
+    for (const json& b : w["histogram"]) {
+      bins +=
+          fmt::format("{}{}{} {}", bins.empty() ? "" : ", ", b["to_us"].is_null() ? ">=" : "",
+                      b["to_us"].is_null() ? std::to_string(b["from_us"].get<std::int64_t>())
+                                           : fmt::format("{}-{}", b["from_us"].get<std::int64_t>(),
+                                                         b["to_us"].get<std::int64_t>()),
+                      b["cycles"].get<std::uint64_t>());
+    }
+    out << fmt::format(
+        "  {:<6} wake-up latency p50 {:.0f} us, p99 {:.0f} us, p99.9 {:.0f} us, max {:.0f} us; "
+        "cycles by us: {}\n",
+        side, w["p50_us"].get<double>(), w["p99_us"].get<double>(), w["p999_us"].get<double>(),
+        w["max_us"].get<double>(), bins);
+    const json& o = j["nodes"][side]["overruns"];
+    std::string seconds;
+    for (const json& b : o["seconds_histogram"]) {
+      const std::uint64_t from = b["from"].get<std::uint64_t>();
+      seconds += fmt::format("{}{} {}", seconds.empty() ? "" : ", ",
+                             b["to"].is_null() ? fmt::format(">={}", from)
+                             : b["to"].get<std::uint64_t>() == from
+                                 ? std::to_string(from)
+                                 : fmt::format("{}-{}", from, b["to"].get<std::uint64_t>()),
+                             b["seconds"].get<std::uint64_t>());
+    }
+    out << fmt::format("  {:<6} overruns {} in {} s (worst second {}); seconds by overruns: {}\n",
+                       side, o["total"].get<std::uint64_t>(), o["seconds"].get<std::size_t>(),
+                       o["worst_second"].get<std::uint64_t>(), seconds);
   }
   const json& alarms = j["alarms"];
   std::string severities;

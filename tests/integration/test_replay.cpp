@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -30,6 +31,8 @@
 #include <zmq.hpp>
 
 #include "common/record/mcap_reader.hpp"
+#include "common/record/mcap_writer.hpp"
+#include "common/record/proto_schema.hpp"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
 #include "tests/integration/cli_harness.hpp"
@@ -200,6 +203,116 @@ TEST(Replay, SummaryCountsWhatSimulateWrote) {
       << text.out;
   EXPECT_NE(text.out.find("recorder drops: unknown"), std::string::npos) << text.out;
   EXPECT_NE(text.out.find("stability: 1 report"), std::string::npos) << text.out;
+}
+
+// The soak report's histograms (issue 7): wake-up latency of every recorded cycle and the
+// deadlines the loop skipped per second, from a file whose cycles are laid out here by hand:
+// three seconds on a 1 ms grid from t = 10 s, with gaps of known size put into the grid.
+TEST(Replay, SummaryHistogramsAreTheRecordedWakeUpLatenciesAndSkippedDeadlines) {
+  const TempDir dir;
+  const fs::path file = dir.file("hist.mcap");
+  std::vector<std::int64_t> latencies;  // what was written, in order
+  std::map<std::int64_t, std::uint64_t> skipped_per_second;
+  {
+    teleop::record::McapWriter w(file);
+    const std::uint16_t schema =
+        w.add_schema(teleop::record::protobuf_schema(teleop::v1::Telemetry::descriptor()));
+    const std::uint16_t channel = w.add_channel({schema, "/master/telemetry", "protobuf", {}});
+    teleop::v1::Telemetry t;
+    std::int64_t time_ns = 10'000'000'000;
+    std::uint64_t sequence = 1;
+    // Gaps (in periods) before given cycles: second 10 one gap of 3 periods (2 skipped), second
+    // 11 fifteen gaps of 2 periods (1 skipped each), second 12 none.
+    std::map<std::uint64_t, int> gap_before = {{500, 3}};
+    for (int k = 0; k < 15; ++k) gap_before[1200 + 40 * static_cast<std::uint64_t>(k)] = 2;
+    while (time_ns < 13'000'000'000) {
+      teleop::v1::CycleRecord* c = t.add_cycles();
+      c->set_sequence(sequence);
+      c->set_sample_time_ns(time_ns);
+      c->set_mode(teleop::v1::ENGAGED);
+      // 1 % of cycles 1.5 ms late, 9 % 120 us, the rest 30 us.
+      const std::int64_t late =
+          sequence % 100 == 0 ? 1'500'000 : (sequence % 10 == 0 ? 120'000 : 30'000);
+      c->set_wakeup_latency_ns(late);
+      latencies.push_back(late);
+      ++sequence;
+      const auto g = gap_before.find(sequence);
+      const int periods = g == gap_before.end() ? 1 : g->second;
+      time_ns += periods * 1'000'000;
+      if (periods > 1 && time_ns < 13'000'000'000) {
+        skipped_per_second[time_ns / 1'000'000'000] += static_cast<std::uint64_t>(periods - 1);
+      }
+      if (t.cycles_size() == 20) {
+        t.set_session_id(7);
+        t.mutable_loop()->set_period_s(0.001);
+        ASSERT_TRUE(w.write(channel, static_cast<std::uint64_t>(time_ns), t.SerializeAsString()));
+        t.Clear();
+      }
+    }
+    if (t.cycles_size() > 0) {
+      t.set_session_id(7);
+      t.mutable_loop()->set_period_s(0.001);
+      ASSERT_TRUE(w.write(channel, static_cast<std::uint64_t>(time_ns), t.SerializeAsString()));
+    }
+    ASSERT_TRUE(w.close()) << w.error();
+  }
+  ASSERT_EQ(skipped_per_second[10], 2u);
+  ASSERT_EQ(skipped_per_second[11], 15u);
+
+  const SplitResult r = run(dir, "replay " + file.string() + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const json j = json::parse(r.out);
+  const json& n = j["nodes"]["master"];
+  // Latency: counts per bin from the list written, quantiles by nearest rank on it.
+  std::vector<std::int64_t> sorted = latencies;
+  std::sort(sorted.begin(), sorted.end());
+  const auto rank_us = [&](double q) {
+    return static_cast<double>(
+               sorted[static_cast<std::size_t>(std::ceil(q * static_cast<double>(sorted.size()))) -
+                      1]) *
+           1e-3;
+  };
+  const json& w = n["wakeup_latency"];
+  EXPECT_DOUBLE_EQ(w["p50_us"].get<double>(), 30.0);
+  EXPECT_DOUBLE_EQ(w["p99_us"].get<double>(), rank_us(0.99));
+  EXPECT_DOUBLE_EQ(w["p999_us"].get<double>(), 1500.0);
+  EXPECT_DOUBLE_EQ(w["max_us"].get<double>(), 1500.0);
+  const auto count = [&](std::int64_t v) {
+    return static_cast<std::uint64_t>(std::count(latencies.begin(), latencies.end(), v));
+  };
+  std::map<std::int64_t, std::uint64_t> bins;
+  for (const json& b : w["histogram"]) {
+    bins[b["from_us"].get<std::int64_t>()] = b["cycles"].get<std::uint64_t>();
+  }
+  EXPECT_EQ(bins[0], count(30'000));        // [0, 50) us
+  EXPECT_EQ(bins[100], count(120'000));     // [100, 200) us
+  EXPECT_EQ(bins[1000], count(1'500'000));  // [1, 2) ms
+  EXPECT_EQ(bins[50] + bins[200] + bins[500] + bins[2000] + bins[5000], 0u);
+  // Overruns: 17 skipped deadlines; seconds 10 (2 skipped), 11 (15) and 12 (none).
+  const json& o = n["overruns"];
+  EXPECT_EQ(o["total"].get<std::uint64_t>(), 17u);
+  EXPECT_EQ(o["seconds"].get<std::uint64_t>(), 3u);
+  EXPECT_EQ(o["worst_second"].get<std::uint64_t>(), 15u);
+  std::map<std::uint64_t, std::uint64_t> seconds;
+  for (const json& b : o["seconds_histogram"]) {
+    seconds[b["from"].get<std::uint64_t>()] = b["seconds"].get<std::uint64_t>();
+  }
+  EXPECT_EQ(seconds[0], 1u);  // second 12
+  EXPECT_EQ(seconds[1], 0u);
+  EXPECT_EQ(seconds[2], 1u);   // 2-9: second 10
+  EXPECT_EQ(seconds[10], 1u);  // 10-99: second 11
+  EXPECT_EQ(seconds[100], 0u);
+  EXPECT_EQ(n["cycles_missing"].get<std::uint64_t>(), 0u);
+  EXPECT_TRUE(j["nodes"]["slave"]["wakeup_latency"].is_null());
+
+  // The text form gives the same lines.
+  const SplitResult text = run(dir, "replay " + file.string());
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("master overruns 17 in 3 s (worst second 15); seconds by overruns: 0 1, "
+                          "1 0, 2-9 1, 10-99 1, >=100 0"),
+            std::string::npos)
+      << text.out;
+  EXPECT_NE(text.out.find("master wake-up latency p50 30 us"), std::string::npos) << text.out;
 }
 
 TEST(Replay, CsvRowsAreTheCyclesAndEqualTheSimulateCsv) {

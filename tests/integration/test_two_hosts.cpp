@@ -1,0 +1,243 @@
+// Master and slave as two hosts on one machine (issue 8): each node in its own network
+// namespace, the two joined by a veth pair, one `teleopctl relay` per direction adding 2-5 ms
+// (3.5 ± 1.5 ms, uniform) on the receiving host, and the supervisor on the master's host
+// reaching the slave across the link. Every process reads the same system file, as on two
+// real machines. Expected values: the round trip from the delays put in (4-10 ms plus the
+// loops' own cycles), and the maximum stable stiffness from `teleopctl analyze` for the
+// round trip the supervisor measured.
+//
+// Needs root (network namespaces); without it, or without `ip netns`, the test is skipped and
+// says why.
+#include <fcntl.h>
+#include <gtest/gtest.h>
+#include <sched.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+
+#include "tests/integration/cli_harness.hpp"
+#include "tests/integration/node_harness.hpp"
+
+namespace teleop::test {
+namespace {
+
+namespace fs = std::filesystem;
+
+int sh(const std::string& command) {
+  const int rc = std::system((command + " >/dev/null 2>&1").c_str());
+  return WIFEXITED(rc) ? WEXITSTATUS(rc) : 128;
+}
+
+// Two namespaces and a veth pair between them, removed again on destruction. The calling
+// thread is moved into the master's namespace (as if the test ran on the master's host) and
+// back at the end; processes it starts inherit that namespace unless started through
+// `ip netns exec`.
+class TwoHosts {
+ public:
+  TwoHosts()
+      : tag_(std::to_string(::getpid() % 100000)),
+        master_ns_("tm" + tag_),
+        slave_ns_("ts" + tag_),
+        subnet_("10.77." + std::to_string(::getpid() % 250) + ".") {}
+  ~TwoHosts() {
+    if (home_ >= 0) {
+      (void)::setns(home_, CLONE_NEWNET);
+      ::close(home_);
+    }
+    (void)sh("ip netns del " + master_ns_);
+    (void)sh("ip netns del " + slave_ns_);
+  }
+  TwoHosts(const TwoHosts&) = delete;
+  TwoHosts& operator=(const TwoHosts&) = delete;
+
+  // Empty on success, else why the two hosts could not be made.
+  std::string make() {
+    if (::geteuid() != 0) return "network namespaces need root";
+    if (sh("ip netns add " + master_ns_) != 0) return "ip netns add failed (no iproute2?)";
+    if (sh("ip netns add " + slave_ns_) != 0) return "ip netns add failed";
+    const std::string vm = "vm" + tag_;
+    const std::string vs = "vs" + tag_;
+    for (const std::string& c :
+         {"ip link add " + vm + " type veth peer name " + vs,
+          "ip link set " + vm + " netns " + master_ns_, "ip link set " + vs + " netns " + slave_ns_,
+          "ip -n " + master_ns_ + " addr add " + master_ip() + "/24 dev " + vm,
+          "ip -n " + slave_ns_ + " addr add " + slave_ip() + "/24 dev " + vs,
+          "ip -n " + master_ns_ + " link set " + vm + " up",
+          "ip -n " + slave_ns_ + " link set " + vs + " up",
+          "ip -n " + master_ns_ + " link set lo up", "ip -n " + slave_ns_ + " link set lo up"}) {
+      if (sh(c) != 0) return "failed: " + c;
+    }
+    if (sh("ip netns exec " + slave_ns_ + " true") != 0) {
+      return "the namespaces cannot run commands";
+    }
+    home_ = ::open("/proc/self/ns/net", O_RDONLY | O_CLOEXEC);
+    const int fd = ::open(("/run/netns/" + master_ns_).c_str(), O_RDONLY | O_CLOEXEC);
+    if (home_ < 0 || fd < 0 || ::setns(fd, CLONE_NEWNET) != 0) {
+      if (fd >= 0) ::close(fd);
+      return "setns into the master's namespace failed";
+    }
+    ::close(fd);
+    return "";
+  }
+  [[nodiscard]] std::string master_ip() const { return subnet_ + "1"; }
+  [[nodiscard]] std::string slave_ip() const { return subnet_ + "2"; }
+  [[nodiscard]] const std::string& slave_ns() const { return slave_ns_; }
+
+ private:
+  std::string tag_;
+  std::string master_ns_;
+  std::string slave_ns_;
+  std::string subnet_;
+  int home_{-1};
+};
+
+std::string at(const std::string& ip, int port) {
+  return "tcp://" + ip + ":" + std::to_string(port);
+}
+
+std::vector<std::string> words(const std::string& line) {
+  std::vector<std::string> out;
+  std::istringstream in(line);
+  for (std::string w; in >> w;) out.push_back(w);
+  return out;
+}
+
+TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitToAnalyze) {
+  TwoHosts hosts;
+  if (const std::string why = hosts.make(); !why.empty()) GTEST_SKIP() << why;
+  TempDir dir;
+  const Ports p;
+  const int relay_to_slave = free_port();   // bound on the slave's host
+  const int relay_to_master = free_port();  // bound on the master's host
+  const int report = free_port();
+  const int request = free_port();
+  const std::string m = hosts.master_ip();
+  const std::string s = hosts.slave_ip();
+  auto node = [](const std::string& ip, int state, int command, int telemetry, int relay) {
+    return "node { state_endpoint: \"" + at(ip, state) + "\" command_endpoint: \"" +
+           at(ip, command) + "\" telemetry_endpoint: \"" + at(ip, telemetry) +
+           "\" peer_state_endpoint: \"" + at("127.0.0.1", relay) +
+           "\" telemetry_rate_hz: 100 rt { fifo_priority: 80 lock_memory: false "
+           "cpu_dma_latency_us: -1 } }";
+  };
+  const fs::path config = dir.write(
+      "system.textproto",
+      paddles_system(node(m, p.master_state, p.master_command, p.master_telemetry, relay_to_master),
+                     node(s, p.slave_state, p.slave_command, p.slave_telemetry, relay_to_slave),
+                     "fixture { stiffness_N_per_m: 3000 position_m: 0.005 }", 0.5) +
+          "supervisor { report_endpoint: \"" + tcp(report) + "\" request_endpoint: \"" +
+          tcp(request) + "\" record: false }\n" +
+          // Plaintext: the relay forwards frames as they are and cannot take part in CURVE.
+          "security { insecure: true }\n");
+  const std::string delay = " --delay-ms 3.5 --jitter-ms 1.5";
+  const std::vector<std::string> on_slave_host = {"netns", "exec", hosts.slave_ns()};
+  auto slave_host = [&](const std::string& binary, const std::vector<std::string>& args) {
+    std::vector<std::string> all = on_slave_host;
+    all.push_back(binary);
+    all.insert(all.end(), args.begin(), args.end());
+    return all;
+  };
+  // The slave's host: the slave and the relay that brings it the master's states.
+  Process relay_ms(
+      "/sbin/ip",
+      slave_host(TELEOPCTL_PATH, words("relay --from " + at(m, p.master_state) + " --to " +
+                                       tcp(relay_to_slave) + delay + " --seed 5")),
+      dir.path() / "relay_ms.log");
+  Process slave("/sbin/ip", slave_host(SLAVE_BIN, {config.string()}), dir.path() / "slave.log");
+  // The master's host: the master, its relay, the supervisor (and this test).
+  Process relay_sm(TELEOPCTL_PATH,
+                   words("relay --from " + at(s, p.slave_state) + " --to " + tcp(relay_to_master) +
+                         delay + " --seed 6"),
+                   dir.path() / "relay_sm.log");
+  Process master(MASTER_BIN, {config.string()}, dir.path() / "master.log");
+  Process supervisor(SUPERVISOR_BIN, {config.string()}, dir.path() / "supervisor.log");
+  const auto logs = [&] {
+    return "--- master\n" + master.log() + "--- slave\n" + slave.log() + "--- supervisor\n" +
+           supervisor.log() + "--- relay to slave\n" + relay_ms.log() + "--- relay to master\n" +
+           relay_sm.log();
+  };
+
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, at(m, p.master_telemetry));
+  TelemetryTap st(ctx, at(s, p.slave_telemetry));
+  ASSERT_TRUE(mt.wait_for([](const v1::Telemetry& t) { return t.link().accepted() > 0; }))
+      << logs();
+  ASSERT_TRUE(st.wait_for([](const v1::Telemetry& t) { return t.link().accepted() > 0; }))
+      << logs();
+  for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+    for (const std::string& endpoint : {at(m, p.master_command), at(s, p.slave_command)}) {
+      const auto r = send_command(ctx, endpoint, kind);
+      ASSERT_TRUE(r.has_value() && r->ok()) << endpoint << "\n" << logs();
+    }
+  }
+  ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << logs();
+  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << logs();
+
+  // Two seconds of engaged cycles on the master's clock, so the round trip's p99 has settled.
+  const std::int64_t engaged_at = mt.cycles().back().sample_time_ns();
+  ASSERT_TRUE(mt.wait_for([&](const v1::Telemetry& t) {
+    return t.cycles_size() > 0 &&
+           t.cycles(t.cycles_size() - 1).sample_time_ns() > engaged_at + 2'000'000'000;
+  })) << logs();
+  // The link across the hosts: at least 2 + 2 ms, at most 5 + 5 ms plus a cycle of each loop
+  // and the relays' own scheduling (a starved host adds more; the upper bound allows 3 ms).
+  const v1::LinkStats link = mt.last()->link();
+  EXPECT_GE(link.round_trip_p50_ns(), 4'000'000) << link.DebugString();
+  EXPECT_LE(link.round_trip_p50_ns(), 10'000'000) << link.DebugString();
+  EXPECT_GE(link.round_trip_p99_ns(), link.round_trip_p50_ns());
+  EXPECT_LE(link.round_trip_p99_ns(), 13'000'000) << link.DebugString();
+
+  // The supervisor's model takes the round trip it measured (the larger of the two nodes'
+  // p99s, in whole samples rounded up), and its limit is what the offline analyser gives for
+  // that many samples.
+  std::optional<v1::SupervisorStatus> status;
+  ASSERT_TRUE(eventually([&] {
+    status = supervisor_status(ctx, request);
+    return status && status->report().round_trip_samples() >= 5 &&
+           status->report().measured_round_trip_ns() > 0;
+  })) << logs();
+  const v1::StabilityReport& r = status->report();
+  const int samples = r.round_trip_samples();
+  EXPECT_EQ(samples, static_cast<int>(
+                         std::ceil(static_cast<double>(r.measured_round_trip_ns()) / 1e6 - 1e-9)))
+      << r.DebugString();
+  EXPECT_GE(r.measured_round_trip_ns(), 4'000'000);
+  const auto limit = [&](int n) {
+    const CliResult a = teleopctl("analyze " + config.string() +
+                                      " --max-stiffness slave --json --set "
+                                      "round_trip_delay_samples=" +
+                                      std::to_string(n),
+                                  false);
+    EXPECT_TRUE(a.exit_code == 0 || a.exit_code == 3) << a.out;
+    return nlohmann::json::parse(a.out)["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
+  };
+  const double analysed = limit(samples);
+  const double one_sample = limit(1);
+  ASSERT_TRUE(r.has_max_stable_slave_stiffness_n_per_m());
+  EXPECT_NEAR(r.max_stable_slave_stiffness_n_per_m(), analysed, 1e-3 * analysed);
+  EXPECT_LT(analysed, one_sample);
+  std::cout << "across the veth with 2-5 ms each way: round trip p50 "
+            << static_cast<double>(link.round_trip_p50_ns()) * 1e-6 << " ms, p99 "
+            << static_cast<double>(link.round_trip_p99_ns()) * 1e-6 << " ms; supervisor model "
+            << samples << " samples, slave limit " << r.max_stable_slave_stiffness_n_per_m()
+            << " N/m; teleopctl analyze " << analysed << " N/m (one sample: " << one_sample
+            << " N/m)\n";
+  // The 3000 N/m wall is within the one-sample limit but not within this one: the guard
+  // lowered it (an ACTION naming the grown round trip), and the slave runs with what it put
+  // in force, below the new limit.
+  ASSERT_LT(analysed, 3000.0);
+  ASSERT_GT(one_sample, 3000.0);
+  ASSERT_TRUE(st.wait_for([&](const v1::Telemetry& t) {
+    return t.active().change_id() > 0 && t.active().ramp_progress() == 1.0;
+  })) << logs();
+  const double in_force = st.last()->active().slave_fixture_stiffness_n_per_m();
+  EXPECT_LT(in_force, analysed);
+  std::cout << "the guard lowered the wall from 3000 to " << in_force << " N/m\n";
+  EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
+  EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
+}
+
+}  // namespace
+}  // namespace teleop::test
