@@ -15,6 +15,7 @@
 
 #include "common/device/sim_device.hpp"
 #include "common/rt/cpu_dma_latency.hpp"
+#include "common/transport/socket_monitor.hpp"
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
@@ -129,6 +130,7 @@ struct NodeApp::Impl {
   std::optional<zmq::socket_t> state_sub{};
   std::optional<zmq::socket_t> command_rep{};
   std::optional<zmq::socket_t> telemetry_pub{};
+  std::optional<transport::SocketMonitor> monitor{};
   std::optional<rt::CpuDmaLatency> dma{};
   std::unique_ptr<rt::PeriodicLoop> loop{};
   std::atomic<bool> running{false};
@@ -196,6 +198,11 @@ void NodeApp::start() {
       transport::make_telemetry_publisher(m.ctx, setup_.endpoints.telemetry, m.server_security));
   m.state_sub.emplace(
       transport::make_state_subscriber(m.ctx, setup_.endpoints.peer_state, m.client_security));
+  // Connections, closures and failed handshakes on every endpoint, counted in telemetry.
+  m.monitor.emplace(
+      m.ctx,
+      std::vector<zmq::socket_t*>{&*m.state_pub, &*m.command_rep, &*m.telemetry_pub, &*m.state_sub},
+      setup_.settings.role == Role::kMaster ? "master" : "slave");
 
   if (setup_.cpu_dma_latency_us >= 0) {
     m.dma.emplace(setup_.cpu_dma_latency_us);
@@ -429,6 +436,11 @@ void NodeApp::start() {
       k->set_peer_session_id(stats.peer_session_id);
       k->set_peer_restarts(stats.peer_restarts);
       k->set_peer_age_ns(stats.peer_age_ns);
+      const transport::ConnectionCounts conn = m.monitor->counts();
+      k->set_connections_accepted(conn.accepted);
+      k->set_connections_closed(conn.closed);
+      k->set_handshakes_failed(conn.handshakes_failed);
+      k->set_handshakes_refused_auth(conn.auth_failed);
       v1::RtStatus* r = t.mutable_rt();
       r->set_fifo_priority(setup_.rt.fifo_priority);
       r->set_memory_locked(setup_.rt.lock_memory);
@@ -476,6 +488,7 @@ void NodeApp::stop() {
   for (std::thread* t : {&m.sender, &m.receiver, &m.commands, &m.telemetry}) {
     if (t->joinable()) t->join();
   }
+  if (m.monitor) m.monitor->stop();
   m.state_pub.reset();
   m.state_sub.reset();
   m.command_rep.reset();

@@ -263,6 +263,12 @@ TEST(NodesCurve, UnlistedKeyGetsNoTelemetryAndNoHearingForCommandsAndTheLogNames
   for (std::size_t i = before; i < c.size(); ++i) ASSERT_EQ(c[i].mode(), v1::ENGAGED) << i;
   EXPECT_EQ(nodes.master->log().find("command DISENGAGE"), std::string::npos)
       << nodes.master->log();
+  // Counted in the master's own telemetry: at least the intruder's two refused handshakes
+  // (telemetry and command endpoints), and the plaintext subscriber's failed one besides.
+  EXPECT_TRUE(mt.wait_for([](const v1::Telemetry& t) {
+    return t.link().handshakes_refused_auth() >= 2 &&
+           t.link().handshakes_failed() >= t.link().handshakes_refused_auth() + 1;
+  })) << mt.last()->link().DebugString();
 
   // The same command with the console's key is heard: the refusal was the key, nothing else.
   EXPECT_EQ(

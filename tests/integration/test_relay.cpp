@@ -4,6 +4,8 @@
 // from the nodes' own telemetry timestamps; expected values come from the faults put in, the
 // link rules (30 ms peer timeout) and `teleopctl analyze`.
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -277,6 +279,7 @@ TEST(Relay, OversizedFramesAndAConnectionFloodNeverReachTheLawAndTheNodeGoesOn) 
   RelayedSystem sys("", "");
   ASSERT_NO_FATAL_FAILURE(sys.engage());
   const std::size_t from = sys.mt.cycles().size();
+  const v1::LinkStats before = sys.mt.last()->link();
   const std::string command = tcp(sys.master_command_port());
   // 10 MB frames at the master's command endpoint (its limit is 64 KiB): libzmq drops each
   // connection before the frame is allocated; nothing is answered.
@@ -290,11 +293,16 @@ TEST(Relay, OversizedFramesAndAConnectionFloodNeverReachTheLawAndTheNodeGoesOn) 
     zmq::message_t reply;
     EXPECT_FALSE(s.recv(reply).has_value()) << "an oversized command was answered";
   }
-  // A flood of connections that each open and close at once.
+  // A flood of TCP connections that each open and close at once, before any handshake.
   for (int i = 0; i < 300; ++i) {
-    zmq::socket_t s(sys.ctx, zmq::socket_type::req);
-    s.set(zmq::sockopt::linger, 0);
-    s.connect(command);
+    const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+    ASSERT_GE(fd, 0);
+    sockaddr_in a{};
+    a.sin_family = AF_INET;
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    a.sin_port = htons(static_cast<std::uint16_t>(sys.master_command_port()));
+    ASSERT_EQ(::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof(a)), 0) << i;
+    ::close(fd);
   }
   // The node still answers a real command, and stayed engaged every cycle meanwhile.
   const auto r = send_command(sys.ctx, command, v1::NodeCommand::STATUS);
@@ -307,6 +315,21 @@ TEST(Relay, OversizedFramesAndAConnectionFloodNeverReachTheLawAndTheNodeGoesOn) 
     ASSERT_EQ(cycles[i].mode(), v1::ENGAGED) << "cycle " << cycles[i].sequence();
   }
   EXPECT_EQ(sys.mt.last()->cycles_dropped(), 0u);
+  // All counted in the master's telemetry: 5 + 300 connections accepted (and the STATUS
+  // request's), and each of the 305 gone again, the oversized ones after their handshake
+  // (closed), the flood's before it (failed handshakes).
+  std::optional<v1::LinkStats> link;
+  EXPECT_TRUE(sys.mt.wait_for([&](const v1::Telemetry& t) {
+    link = t.link();
+    return link->connections_accepted() - before.connections_accepted() >= 305 &&
+           (link->connections_closed() - before.connections_closed()) +
+                   (link->handshakes_failed() - before.handshakes_failed()) >=
+               305;
+  })) << (link ? link->DebugString() : std::string("no telemetry"));
+  std::cout << "connections accepted "
+            << link->connections_accepted() - before.connections_accepted() << ", closed "
+            << link->connections_closed() - before.connections_closed() << ", handshakes failed "
+            << link->handshakes_failed() - before.handshakes_failed() << "\n";
 }
 
 }  // namespace
