@@ -37,7 +37,7 @@ else
 fi
 
 part "faults on the live system (loopback)"
-faults='^(Relay\.|Nodes\.(SlaveKilled|RestartedSlave|EStop|NaNPosition|HundredThousand)|SupervisorLive\.(KillNine|Restarted|DiskFull|BuzzingWall)|NodesCurve\.Unlisted|Console\.EstopGoesStraight)'
+faults='^(Relay\.|Nodes\.(SlaveKilled|RestartedSlave|EStop|DeviceFault|NaNPosition|HundredThousand)|SupervisorLive\.(KillNine|Restarted|DiskFull|BuzzingWall)|NodesCurve\.Unlisted|Console\.EstopGoesStraight)'
 if (cd build && ctest -R "$faults" --output-on-failure 2>&1 | tee /tmp/teleop-campaign-faults.txt |
     grep -E "Test +#|tests passed|round trip p50|overruns during"); then
   note "faults: $(grep -E 'tests passed' /tmp/teleop-campaign-faults.txt)"

@@ -108,6 +108,21 @@ void fill_hardware(const v1::Device& d, const std::string& path, bool ideal, std
   cfg.load_cell.range_N = ideal                         ? 1e12
                           : d.load_cell().has_range_n() ? d.load_cell().range_n()
                                                         : kPaddleLoadCellRangeN;
+  if (d.has_estop()) {
+    const v1::EStopSchedule& e = d.estop();
+    if (!e.has_press_at_s()) {
+      checks.add(path + ".estop.press_at_s", "is required when estop is given");
+    } else {
+      checks.non_negative(path + ".estop.press_at_s", e.press_at_s());
+      cfg.estop_press_at_s = e.press_at_s();
+    }
+    if (e.has_release_at_s()) {
+      if (!(e.release_at_s() > e.press_at_s())) {
+        checks.add(path + ".estop.release_at_s", "must be after press_at_s");
+      }
+      cfg.estop_release_at_s = e.release_at_s();
+    }
+  }
   const v1::Actuator& a = d.actuator();
   if (a.has_max_force_n()) checks.positive(path + ".actuator.max_force_N", a.max_force_n());
   if (a.has_max_rate_n_per_s()) {

@@ -117,14 +117,19 @@ Status SimDevice::advance(std::chrono::nanoseconds period) noexcept {
   }
   const sim::PeriodForce exogenous =
       human_ && scene_running ? human_->exogenous(t0_s, period_s) : sim::PeriodForce{};
-  const bool driving = stage_ == Stage::kActive && !estop_;
+  // The scheduled e-stop press (scene time), on top of the button set_estop() holds.
+  const bool scheduled_estop = scene_running && config_.estop_press_at_s &&
+                               t0_s >= *config_.estop_press_at_s &&
+                               (!config_.estop_release_at_s || t0_s < *config_.estop_release_at_s);
+  const bool estop = estop_ || scheduled_estop;
+  const bool driving = stage_ == Stage::kActive && !estop;
   applied_force_N_ = driving ? command_.force_N : 0.0;
   plant_->step(applied_force_N_, exogenous.force_N, exogenous.slope_N_per_s);
   time_ += period;
   std::uint32_t flags = 0;
   if (driving && command_.saturated) flags |= SampleFlags::kAmplifierSaturated;
   if (command_rejected_) flags |= SampleFlags::kCommandRejected;
-  if (estop_) flags |= SampleFlags::kFault;
+  if (estop) flags |= SampleFlags::kFault;
   command_rejected_ = false;
   take_sample(flags);
   return Status::Ok();

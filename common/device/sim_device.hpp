@@ -37,6 +37,9 @@ struct SimDeviceConfig {
   // A live node's device: the scene's clock (the human's push, a malicious user's schedule)
   // stands at 0 with no push until on_engaged(); the lockstep simulator starts it at once.
   bool hold_scene_until_engaged{false};
+  // The e-stop button pressed over [press, release) of scene time (release absent: held).
+  std::optional<double> estop_press_at_s{};
+  std::optional<double> estop_release_at_s{};
 
   // The paper's master paddle (0.040 kg, 0.41 Ns/m) held by a human.
   [[nodiscard]] static SimDeviceConfig paddle_master(sim::HumanParams human);

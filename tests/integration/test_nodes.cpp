@@ -16,6 +16,7 @@ namespace teleop::test {
 namespace {
 
 constexpr double kPeriodNs = 1e6;
+constexpr std::uint32_t kFaultBit = 1U << 2;  // device::SampleFlags::kFault
 
 // The paper's paddles at 1 kHz, symmetric PD, a fixed human pushing 1 N from engagement on.
 std::string paddles_config(const Ports& p, const std::string& extra = "", double push_N = 1.0,
@@ -320,6 +321,79 @@ TEST(Nodes, EStopOfTheSlaveAloneSendsTheMasterSafeOverTheLink) {
   ASSERT_TRUE(send_command(ctx, tcp(ports.slave_command), v1::NodeCommand::ESTOP)->ok());
   ASSERT_TRUE(mt.wait_for_mode(v1::SAFE, 5s));
   EXPECT_EQ(mt.last()->mode_reason(), "peer safe, faulted or restarted");
+}
+
+// The device's own fault bit (issue 7 fault table): the slave's simulated e-stop button is
+// pressed 1 s into the scene and released at 1.5 s. The slave must fault in the very cycle
+// whose sample carries the bit (0 N out), stay faulted after the release until a CLEAR, and
+// the master must go safe as soon as the slave's state can reach it: the one-way trip.
+TEST(Nodes, DeviceFaultBitFaultsTheNodeAtOnceLatchedAndTheMasterGoesSafeOverTheLink) {
+  TempDir dir;
+  Ports ports;
+  std::string config = paddles_config(ports);
+  const std::string slave_device = "mass_kg: 0.036 damping_Ns_per_m: 0.49 }";
+  ASSERT_NE(config.find(slave_device), std::string::npos);
+  config.replace(config.find(slave_device), slave_device.size(),
+                 "mass_kg: 0.036 damping_Ns_per_m: 0.49 estop { press_at_s: 1.0 "
+                 "release_at_s: 1.5 } }");
+  Nodes nodes(dir, config);
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, tcp(ports.master_telemetry));
+  TelemetryTap st(ctx, tcp(ports.slave_telemetry));
+  nodes.start_master();
+  nodes.start_slave();
+  ASSERT_TRUE(mt.wait_for(linked)) << nodes.master()->log();
+  ASSERT_TRUE(st.wait_for(linked)) << nodes.slave()->log();
+  engage(ctx, ports);
+  ASSERT_TRUE(st.wait_for_mode(v1::FAULT, 10s)) << nodes.slave()->log();
+  ASSERT_TRUE(mt.wait_for_mode(v1::SAFE, 5s)) << nodes.master()->log();
+  // Past the release: 700 more slave cycles (to 1.7 s and beyond on the scene's clock).
+  const std::size_t n = st.cycles().size();
+  ASSERT_TRUE(eventually([&] { return st.cycles().size() > n + 700; })) << nodes.slave()->log();
+
+  const std::vector<v1::CycleRecord> sc = st.cycles();
+  const auto engaged =
+      std::find_if(sc.begin(), sc.end(), [](const auto& c) { return c.mode() == v1::ENGAGED; });
+  const auto pressed = std::find_if(sc.begin(), sc.end(),
+                                    [](const auto& c) { return (c.flags() & kFaultBit) != 0; });
+  ASSERT_NE(engaged, sc.end());
+  ASSERT_NE(pressed, sc.end());
+  // The press came 1 s into the scene (which starts at engagement), give or take a cycle.
+  EXPECT_NEAR(static_cast<double>(pressed->sample_time_ns() - engaged->sample_time_ns()) * 1e-9,
+              1.0, 0.0025);
+  // At once: the cycle that read the bit is already FAULT and commands 0 N; the one before was
+  // still engaged.
+  EXPECT_EQ(pressed->mode(), v1::FAULT) << pressed->DebugString();
+  EXPECT_EQ(pressed->command_n(), 0.0);
+  EXPECT_EQ(std::prev(pressed)->mode(), v1::ENGAGED);
+  // Latched: released after 0.5 s (the bit is gone), still FAULT on every later cycle.
+  const auto released =
+      std::find_if(pressed, sc.end(), [](const auto& c) { return (c.flags() & kFaultBit) == 0; });
+  ASSERT_NE(released, sc.end()) << "the button was never released";
+  EXPECT_NEAR(static_cast<double>(released->sample_time_ns() - pressed->sample_time_ns()) * 1e-9,
+              0.5, 0.0025);
+  ASSERT_GT(sc.end() - released, 100);
+  for (auto c = pressed; c != sc.end(); ++c) {
+    ASSERT_EQ(c->mode(), v1::FAULT) << c->DebugString();
+    ASSERT_EQ(c->command_n(), 0.0);
+  }
+  // The master went safe within the one-way trip of the slave's state (half the round trip it
+  // measured, whole cycles) plus one cycle of each loop, on the shared monotonic clock.
+  const std::vector<v1::CycleRecord> mc = mt.cycles();
+  const auto master_safe =
+      std::find_if(mc.begin(), mc.end(), [](const auto& c) { return c.mode() == v1::SAFE; });
+  ASSERT_NE(master_safe, mc.end());
+  const std::int64_t reaction_ns = master_safe->sample_time_ns() - pressed->sample_time_ns();
+  const std::int64_t round_trip_ns =
+      std::max<std::int64_t>(std::prev(master_safe)->round_trip_ns(), 0);
+  std::cout << "slave fault -> master safe " << static_cast<double>(reaction_ns) * 1e-6
+            << " ms (round trip " << static_cast<double>(round_trip_ns) * 1e-6 << " ms)\n";
+  EXPECT_GE(reaction_ns, 0);
+  EXPECT_LE(reaction_ns, round_trip_ns / 2 + 2'000'000);
+  EXPECT_EQ(mt.last()->mode_reason(), "peer safe, faulted or restarted");
+  // Only a command clears the latch.
+  ASSERT_TRUE(send_command(ctx, tcp(ports.slave_command), v1::NodeCommand::CLEAR)->ok());
+  EXPECT_TRUE(st.wait_for_mode(v1::DISARMED)) << nodes.slave()->log();
 }
 
 // A fake slave: the test binds the slave's state endpoint itself.

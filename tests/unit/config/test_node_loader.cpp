@@ -85,6 +85,30 @@ TEST(NodeLoader, BadValuesAreNamed) {
             std::string::npos);
 }
 
+// The simulated device's scheduled e-stop (issue 7 fault table): taken as given, and each
+// impossible schedule named by its field.
+TEST(NodeLoader, SimulatedEStopScheduleIsTakenAndBadOnesAreNamed) {
+  const NodeSetup s =
+      setup(kPaddles, Role::kSlave,
+            {"slave.device.estop.press_at_s=1.25", "slave.device.estop.release_at_s=2"});
+  ASSERT_TRUE(s.sim.estop_press_at_s.has_value());
+  EXPECT_EQ(*s.sim.estop_press_at_s, 1.25);
+  ASSERT_TRUE(s.sim.estop_release_at_s.has_value());
+  EXPECT_EQ(*s.sim.estop_release_at_s, 2.0);
+  EXPECT_FALSE(setup(kPaddles, Role::kMaster, {"slave.device.estop.press_at_s=1"})
+                   .sim.estop_press_at_s.has_value());
+  EXPECT_NE(error_of(kPaddles, Role::kSlave, {"slave.device.estop.release_at_s=2"})
+                .find("slave.device.estop.press_at_s: is required when estop is given"),
+            std::string::npos);
+  EXPECT_NE(error_of(kPaddles, Role::kSlave,
+                     {"slave.device.estop.press_at_s=2", "slave.device.estop.release_at_s=1"})
+                .find("slave.device.estop.release_at_s: must be after press_at_s"),
+            std::string::npos);
+  EXPECT_NE(error_of(kPaddles, Role::kMaster, {"master.device.estop.press_at_s=-1"})
+                .find("master.device.estop.press_at_s: must be >= 0"),
+            std::string::npos);
+}
+
 TEST(NodeLoader, UnknownLinkFieldIsALoadError) {
   try {
     (void)load_config_text(kPaddles + "link { peer_timeout: 30 }\n", "node.textproto");
