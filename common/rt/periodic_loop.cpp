@@ -8,23 +8,37 @@
 #include <cerrno>
 #include <cstring>
 #include <future>
+#include <optional>
 #include <stdexcept>
+
+#include "common/rt/fifo_check.hpp"
 
 namespace teleop::rt {
 
 namespace {
 
-std::string refusal(const char* what, int error) {
-  return std::string(what) + ": " + std::strerror(error) +
-         (error == EPERM ? " (needs CAP_SYS_NICE / CAP_IPC_LOCK or an rtprio/memlock limit)" : "");
+std::string refusal(const std::string& what, int error) {
+  return what + ": " + std::strerror(error);
 }
 
 }  // namespace
 
+// Runs at start, before the first cycle: the facts behind a refusal are read from /proc and
+// /sys here, never in the loop.
 std::vector<std::string> apply_rt_settings(const RtSettings& s) {
   std::vector<std::string> refused;
+  std::optional<RtFacts> facts;
+  auto gathered = [&facts]() -> const RtFacts& {
+    if (!facts) facts = gather_rt_facts();
+    return *facts;
+  };
   if (s.lock_memory && mlockall(MCL_CURRENT | MCL_FUTURE) != 0) {
-    refused.push_back(refusal("mlockall", errno));
+    const int error = errno;
+    std::string r = refusal("mlockall", error);
+    if (error == EPERM || error == ENOMEM || error == EAGAIN) {
+      r += ". " + explain_mlock_refusal(gathered());
+    }
+    refused.push_back(r);
   }
   if (s.cpu >= 0) {
     cpu_set_t set;
@@ -37,7 +51,12 @@ std::vector<std::string> apply_rt_settings(const RtSettings& s) {
     sched_param p{};
     p.sched_priority = s.fifo_priority;
     const int rc = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
-    if (rc != 0) refused.push_back(refusal("SCHED_FIFO", rc));
+    if (rc != 0) {
+      std::string r = refusal("SCHED_FIFO priority " + std::to_string(s.fifo_priority), rc);
+      if (rc == EPERM || rc == EINVAL)
+        r += ". " + explain_fifo_refusal(gathered(), s.fifo_priority);
+      refused.push_back(r);
+    }
   }
   if (s.required && !refused.empty()) {
     std::string text = "real-time settings refused (rt.required is set):";

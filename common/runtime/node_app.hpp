@@ -50,6 +50,11 @@ class NodeApp {
   [[nodiscard]] std::uint64_t session_id() const noexcept { return setup_.settings.session_id; }
   // RT settings the kernel refused (after start()).
   [[nodiscard]] const std::vector<std::string>& refused() const noexcept { return refused_; }
+  // The RT loop's heartbeat: its cycles so far (modulo 2^32), read by the systemd watchdog
+  // thread. One atomic load.
+  [[nodiscard]] std::uint64_t loop_cycles() const noexcept {
+    return core_->state_published().load(std::memory_order_acquire);
+  }
   // Set when a SHUTDOWN command arrived.
   [[nodiscard]] bool shutdown_requested() const noexcept { return shutdown_.load(); }
 

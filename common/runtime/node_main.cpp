@@ -2,6 +2,7 @@
 #include <signal.h>
 #include <spdlog/spdlog.h>
 
+#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <string>
@@ -12,6 +13,7 @@
 #include "common/device/sim_device.hpp"
 #include "common/device/usb_device.hpp"
 #include "common/runtime/node_app.hpp"
+#include "common/runtime/service_notify.hpp"
 
 namespace teleop::runtime {
 namespace {
@@ -79,6 +81,9 @@ int run_node_main(transport::Role role, int argc, char** argv) {
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
+  // systemd (Type=notify): READY once the loop cycles, the watchdog fed from this thread
+  // while it keeps cycling, STOPPING on the way out. A no-op without NOTIFY_SOCKET.
+  ServiceNotifier notifier("RT loop");
   std::unique_ptr<NodeApp> app;
   try {
     const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
@@ -88,23 +93,44 @@ int run_node_main(transport::Role role, int argc, char** argv) {
     app->start();
   } catch (const config::ConfigError& e) {
     std::cerr << name << ": invalid configuration:\n" << e.what() << "\n";
+    notifier.status(std::string("invalid configuration: ") + e.what());
     return 1;
   } catch (const std::exception& e) {
     std::cerr << name << ": " << e.what() << "\n";
+    notifier.status(std::string("failed to start: ") + e.what());
     return 1;
   }
   const config::NodeSetup& s = app->setup();
   spdlog::info("session {:016x}: state {} (peer {}), commands {}, telemetry {}, {:.0f} Hz",
                app->session_id(), s.endpoints.state, s.endpoints.peer_state, s.endpoints.command,
                s.endpoints.telemetry, 1e9 / static_cast<double>(s.settings.period.count()));
-  const timespec poll{0, 100'000'000};
+  bool ready = false;
+  std::string stopping = "shutdown command: stopping";
   while (!app->shutdown_requested()) {
+    const std::uint64_t cycles = app->loop_cycles();
+    if (!ready && cycles > 0) {
+      notifier.ready(fmt::format(
+          "{} loop at {:.0f} Hz, session {:016x}, commands on {}{}", name,
+          1e9 / static_cast<double>(s.settings.period.count()), app->session_id(),
+          s.endpoints.command,
+          app->refused().empty()
+              ? std::string()
+              : fmt::format(", {} RT settings refused (see the log)", app->refused().size())));
+      ready = true;
+    }
+    // Until the loop's first cycle, look again soon; then as the watchdog needs (<= 100 ms).
+    const std::chrono::nanoseconds wait =
+        ready ? notifier.heartbeat(cycles) : std::chrono::nanoseconds(5'000'000);
+    const timespec poll{static_cast<time_t>(wait.count() / 1'000'000'000),
+                        static_cast<long>(wait.count() % 1'000'000'000)};
     const int sig = sigtimedwait(&signals, nullptr, &poll);
     if (sig == SIGINT || sig == SIGTERM) {
       spdlog::info("signal {}: stopping", sig);
+      stopping = fmt::format("signal {}: stopping", sig);
       break;
     }
   }
+  notifier.stopping(stopping);
   app->stop();
   spdlog::info("stopped");
   return 0;

@@ -273,11 +273,13 @@ KeyFilePaths write_key_files(const fs::path& name, const CurveKeyPair& keys, boo
                   "give {}.pub to the peer\n{} = {}\n{} = {}\n",
                   stem, stem, kPublicField, keys.public_z85, kSecretField, keys.secret_z85),
       0600, force);
-  write_file_atomically(paths.public_file,
-                        fmt::format("# teleop CURVE public key '{}': the peer lists it in "
-                                    "allowed_client_keys or uses it as the server key\n{} = {}\n",
-                                    stem, kPublicField, keys.public_z85),
-                        0644, force);
+  write_file_atomically(
+      paths.public_file,
+      fmt::format(
+          "# teleop CURVE public key '{}': the peer lists it in "
+          "security.client_public_keys (or as a node key) or uses it as the server key\n{} = {}\n",
+          stem, kPublicField, keys.public_z85),
+      0644, force);
   return paths;
 }
 
@@ -305,10 +307,13 @@ CurveKeyPair load_secret_key_file(const fs::path& path) {
 }
 
 std::string load_public_key(std::string_view text_or_file) {
-  if (!z85_key_problem(text_or_file)) return std::string(text_or_file);
   const fs::path path{std::string(text_or_file)};
   std::error_code ec;
-  if (!fs::exists(path, ec)) {
+  // A file first: a 40-character path of Z85 characters (/tmp/xxxxxxxxxx/keys/master.pub)
+  // is also a well-formed key, and taking it as one fails every handshake in silence.
+  const bool is_file = fs::is_regular_file(path, ec);
+  if (!is_file && !z85_key_problem(text_or_file)) return std::string(text_or_file);
+  if (!is_file) {
     if (text_or_file.size() == kZ85KeyChars) {
       throw std::runtime_error(fmt::format("public key '{}' is {}", text_or_file,
                                            z85_key_problem(text_or_file).value_or("")));

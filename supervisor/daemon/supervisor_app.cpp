@@ -692,6 +692,7 @@ struct SupervisorApp::Impl {
                  request_endpoint);
     std::int64_t next_check = monotonic_ns();
     while (!stop.load()) {
+      iterations.fetch_add(1, std::memory_order_relaxed);
       zmq::pollitem_t items[] = {{master_sub.handle(), 0, ZMQ_POLLIN, 0},
                                  {slave_sub.handle(), 0, ZMQ_POLLIN, 0},
                                  {request_rep->handle(), 0, ZMQ_POLLIN, 0}};
@@ -807,6 +808,7 @@ struct SupervisorApp::Impl {
   int escalation_stage{0};
   std::int64_t escalated_ns{0};  // stage 1: when the lowered stiffness is fully in force
   bool settled{true};
+  std::atomic<std::uint64_t> iterations{0};  // the watchdog's heartbeat
 };
 
 SupervisorApp::SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options)
@@ -815,5 +817,9 @@ SupervisorApp::SupervisorApp(const config::LoadedConfig& config, SupervisorOptio
 SupervisorApp::~SupervisorApp() = default;
 
 void SupervisorApp::run(const std::atomic<bool>& stop) { impl_->run(stop); }
+
+std::uint64_t SupervisorApp::loop_iterations() const noexcept {
+  return impl_->iterations.load(std::memory_order_relaxed);
+}
 
 }  // namespace teleop::supervisor

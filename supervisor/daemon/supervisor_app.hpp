@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -49,6 +50,9 @@ class SupervisorApp {
 
   // Runs until `stop` is set. Throws on a socket or key error at start.
   void run(const std::atomic<bool>& stop);
+  // The main loop's heartbeat for the systemd watchdog: its iterations so far (0 until its
+  // endpoints are bound and it runs). Any thread.
+  [[nodiscard]] std::uint64_t loop_iterations() const noexcept;
 
  private:
   struct Impl;

@@ -5,11 +5,13 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <optional>
 #include <thread>
 
+#include "common/runtime/service_notify.hpp"
 #include "supervisor/daemon/session_recorder.hpp"
 #include "supervisor/daemon/supervisor_app.hpp"
 
@@ -66,6 +68,7 @@ int run_supervisor_main(int argc, char** argv) {
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
   std::unique_ptr<SupervisorApp> app;
+  std::optional<runtime::ServiceNotifier> notifier;
   try {
     const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
     const v1::Supervisor& s = loaded.config.supervisor();
@@ -89,29 +92,54 @@ int run_supervisor_main(int argc, char** argv) {
     logger->set_pattern("[%H:%M:%S.%e] [teleop-supervisor] [%^%l%$] %v");
     spdlog::set_default_logger(logger);
     if (options.sink) spdlog::info("recording to {}", options.sink->file());
+    // systemd (Type=notify): logs whether the watchdog is on, once the logger is set up.
+    notifier.emplace("main loop");
     app = std::make_unique<SupervisorApp>(loaded, std::move(options));
   } catch (const config::ConfigError& e) {
     std::cerr << "teleop-supervisor: invalid configuration:\n" << e.what() << "\n";
+    if (notifier) notifier->status(std::string("invalid configuration: ") + e.what());
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "teleop-supervisor: " << e.what() << "\n";
+    if (notifier) notifier->status(std::string("failed to start: ") + e.what());
     return 1;
   }
   std::atomic<bool> stop{false};
+  std::atomic<bool> finished{false};
+  // This thread takes the signals and speaks to systemd: READY once the main loop runs (its
+  // endpoints bound), the watchdog fed only while the main loop keeps iterating, STOPPING.
   std::thread waiter([&] {
-    int sig = 0;
-    sigwait(&signals, &sig);
-    stop = true;
+    bool ready = false;
+    while (!finished.load()) {
+      const std::uint64_t beats = app->loop_iterations();
+      if (!ready && beats > 0) {
+        notifier->ready("supervising " + config_path);
+        ready = true;
+      }
+      const std::chrono::nanoseconds wait =
+          ready ? notifier->heartbeat(beats) : std::chrono::nanoseconds(5'000'000);
+      const timespec poll{static_cast<time_t>(wait.count() / 1'000'000'000),
+                          static_cast<long>(wait.count() % 1'000'000'000)};
+      const int sig = sigtimedwait(&signals, nullptr, &poll);
+      if (sig == SIGINT || sig == SIGTERM) {
+        notifier->stopping("signal " + std::to_string(sig) + ": stopping");
+        stop = true;
+        return;
+      }
+    }
   });
   int rc = 0;
+  std::string failure;
   try {
     app->run(stop);
   } catch (const std::exception& e) {
     std::cerr << "teleop-supervisor: " << e.what() << "\n";
+    failure = e.what();
     rc = 1;
   }
-  if (!stop.load()) pthread_kill(waiter.native_handle(), SIGTERM);
+  finished = true;
   waiter.join();
+  if (rc != 0) notifier->stopping("failed: " + failure);
   app.reset();  // closes the session file (summary written)
   spdlog::info("stopped");
   return rc;

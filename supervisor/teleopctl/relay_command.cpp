@@ -61,6 +61,11 @@ RelayPlan RelayPlanner::plan(double since_first_s) {
     return std::max(0.0, f_.delay_ms + (2.0 * r - 1.0) * f_.jitter_ms);
   };
   p.delays_ms.push_back(delay(r_jitter));
+  if (f_.in_order) {
+    const double at_ms = since_first_s * 1e3;
+    p.delays_ms.front() = std::max(p.delays_ms.front(), last_send_ms_ - at_ms);
+    last_send_ms_ = at_ms + p.delays_ms.front();
+  }
   if (r_dup < f_.duplicate) {
     ++duplicated;
     p.delays_ms.push_back(std::max(p.delays_ms.front(), delay(r_jitter2)) + 0.05);
@@ -75,10 +80,11 @@ RelayPlan RelayPlanner::plan(double since_first_s) {
 std::string relay_usage() {
   return "usage: teleopctl relay --from ENDPOINT --to ENDPOINT [--delay-ms D] [--jitter-ms J]\n"
          "                      [--drop P] [--duplicate P] [--reorder P]\n"
-         "                      [--blackout-at-s T --blackout-ms M] [--seed S]\n\n"
+         "                      [--blackout-at-s T --blackout-ms M] [--in-order] [--seed S]\n\n"
          "The project's fault-injecting relay for one direction of a node link: subscribes to\n"
          "the NodeState publisher at --from, re-publishes every message on --to (bound) after\n"
-         "D ms (plus uniform jitter in [-J, J]), dropping with probability P, sending a second\n"
+         "D ms (plus uniform jitter in [-J, J]; with --in-order never before the message\n"
+         "before it, as on one TCP connection), dropping with probability P, sending a second\n"
          "copy with probability P, holding one back until after the next with probability P,\n"
          "and dropping everything for M ms from T s after the first message. Decisions are\n"
          "seeded (--seed, default 1). Point the peer's node.peer_state_endpoint at --to; one\n"
@@ -101,6 +107,8 @@ int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostr
       f.delay_ms = non_negative(cur.value("--delay-ms"), "--delay-ms");
     } else if (a == "--jitter-ms") {
       f.jitter_ms = non_negative(cur.value("--jitter-ms"), "--jitter-ms");
+    } else if (a == "--in-order") {
+      f.in_order = true;
     } else if (a == "--drop") {
       f.drop = probability(cur.value("--drop"), "--drop");
     } else if (a == "--duplicate") {

@@ -22,6 +22,9 @@ struct RelayFaults {
   double reorder{0.0};         // held back until after the next message
   double blackout_at_s{-1.0};  // from the first message; < 0: none
   double blackout_ms{0.0};     // every message in the blackout is dropped
+  // Jitter as on one TCP connection: a message never overtakes the one before it (its send
+  // time is at least the previous one's).
+  bool in_order{false};
   std::uint64_t seed{1};
 };
 
@@ -43,6 +46,7 @@ class RelayPlanner {
  private:
   RelayFaults f_;
   std::mt19937_64 rng_;
+  double last_send_ms_{-1e300};  // since the first message (in_order)
 };
 
 [[nodiscard]] std::string relay_usage();

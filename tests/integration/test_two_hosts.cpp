@@ -1,6 +1,6 @@
 // Master and slave as two hosts on one machine (issue 8): each node in its own network
 // namespace, the two joined by a veth pair, one `teleopctl relay` per direction adding 2-5 ms
-// (3.5 ± 1.5 ms, uniform) on the receiving host, and the supervisor on the master's host
+// (3.5 ± 1.5 ms, uniform, in order) on the receiving host, and the supervisor on the master's host
 // reaching the slave across the link. Every process reads the same system file, as on two
 // real machines. Expected values: the round trip from the delays put in (4-10 ms plus the
 // loops' own cycles), and the maximum stable stiffness from `teleopctl analyze` for the
@@ -15,7 +15,10 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "tests/integration/cli_harness.hpp"
 #include "tests/integration/node_harness.hpp"
@@ -36,11 +39,14 @@ int sh(const std::string& command) {
 // `ip netns exec`.
 class TwoHosts {
  public:
-  TwoHosts()
+  // The master's host at SUBNET + master_host, the slave's at SUBNET + slave_host.
+  explicit TwoHosts(std::string subnet = "10.77." + std::to_string(::getpid() % 250) + ".",
+                    int master_host = 1, int slave_host = 2)
       : tag_(std::to_string(::getpid() % 100000)),
         master_ns_("tm" + tag_),
         slave_ns_("ts" + tag_),
-        subnet_("10.77." + std::to_string(::getpid() % 250) + ".") {}
+        master_ip_(subnet + std::to_string(master_host)),
+        slave_ip_(subnet + std::to_string(slave_host)) {}
   ~TwoHosts() {
     if (home_ >= 0) {
       (void)::setns(home_, CLONE_NEWNET);
@@ -81,15 +87,16 @@ class TwoHosts {
     ::close(fd);
     return "";
   }
-  [[nodiscard]] std::string master_ip() const { return subnet_ + "1"; }
-  [[nodiscard]] std::string slave_ip() const { return subnet_ + "2"; }
+  [[nodiscard]] const std::string& master_ip() const { return master_ip_; }
+  [[nodiscard]] const std::string& slave_ip() const { return slave_ip_; }
   [[nodiscard]] const std::string& slave_ns() const { return slave_ns_; }
 
  private:
   std::string tag_;
   std::string master_ns_;
   std::string slave_ns_;
-  std::string subnet_;
+  std::string master_ip_;
+  std::string slave_ip_;
   int home_{-1};
 };
 
@@ -131,7 +138,8 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
           tcp(request) + "\" record: false }\n" +
           // Plaintext: the relay forwards frames as they are and cannot take part in CURVE.
           "security { insecure: true }\n");
-  const std::string delay = " --delay-ms 3.5 --jitter-ms 1.5";
+  // 2-5 ms each way, in order as on one TCP connection (the link's own transport).
+  const std::string delay = " --delay-ms 3.5 --jitter-ms 1.5 --in-order";
   const std::vector<std::string> on_slave_host = {"netns", "exec", hosts.slave_ns()};
   auto slave_host = [&](const std::string& binary, const std::vector<std::string>& args) {
     std::vector<std::string> all = on_slave_host;
@@ -211,7 +219,10 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
                                       std::to_string(n),
                                   false);
     EXPECT_TRUE(a.exit_code == 0 || a.exit_code == 3) << a.out;
-    return nlohmann::json::parse(a.out)["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
+    const nlohmann::json v =
+        nlohmann::json::parse(a.out)["limits"][0]["max_stable_stiffness_N_per_m"];
+    EXPECT_TRUE(v.is_number()) << "no stable stiffness at " << n << " samples:\n" << a.out;
+    return v.is_number() ? v.get<double>() : 0.0;
   };
   const double analysed = limit(samples);
   const double one_sample = limit(1);
@@ -237,6 +248,102 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
   std::cout << "the guard lowered the wall from 3000 to " << in_force << " N/m\n";
   EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
   EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
+}
+
+// The README's walk-through from two fresh machines to an engaged teleoperator, on two
+// namespaces with the example's own addresses (192.168.50.10 and .20): keys from
+// `teleopctl keygen`, pasted into examples/two_machines/system.textproto in place of its
+// placeholders, the file otherwise as shipped (CURVE on every link); the slave's host runs
+// teleop-slave, the master's teleop-master and teleop-supervisor; a console key arms and
+// engages both nodes and reads the supervisor's status.
+TEST(TwoHosts, TheTwoMachineExampleEngagesWithKeysFromKeygen) {
+  TwoHosts hosts("192.168.50.", 10, 20);
+  if (const std::string why = hosts.make(); !why.empty()) GTEST_SKIP() << why;
+  TempDir dir;
+  const fs::path keys = dir.path() / "keys";
+  fs::create_directories(keys);
+  std::map<std::string, std::string> public_keys;
+  for (const std::string name : {"master", "slave", "supervisor", "console"}) {
+    const CliResult k = teleopctl("keygen " + (keys / name).string(), false);
+    ASSERT_EQ(k.exit_code, 0) << k.out;
+    std::ifstream in(keys / (name + ".pub"));
+    for (std::string line; std::getline(in, line);) {
+      if (line.rfind("public-key = ", 0) == 0) public_keys[name] = line.substr(13);
+    }
+    ASSERT_EQ(public_keys[name].size(), 40u) << name;
+  }
+  std::ifstream example(fs::path(TELEOP_SOURCE_DIR) / "examples/two_machines/system.textproto");
+  std::stringstream text;
+  text << example.rdbuf();
+  std::string config = text.str();
+  const auto replace_all = [&config](const std::string& from, const std::string& to) {
+    std::size_t n = 0;
+    for (std::size_t at = config.find(from); at != std::string::npos;
+         at = config.find(from, at + to.size())) {
+      config.replace(at, from.size(), to);
+      ++n;
+    }
+    return n;
+  };
+  EXPECT_EQ(replace_all("REPLACEwithMASTERpublicKEYfromKEYGEN0000", public_keys["master"]), 1u);
+  EXPECT_EQ(replace_all("REPLACEwithSLAVEpublicKEYfromKEYGEN00000", public_keys["slave"]), 1u);
+  EXPECT_EQ(replace_all("REPLACEwithSUPERVISORpublicKEYfromKEYGEN", public_keys["supervisor"]), 2u);
+  EXPECT_EQ(replace_all("REPLACEwithCONSOLEpublicKEYfromKEYGEN000", public_keys["console"]), 1u);
+  // This test's own directories in place of /etc/teleop/keys and /var/lib/teleop.
+  EXPECT_GE(replace_all("/etc/teleop/keys/", keys.string() + "/"), 3u);
+  EXPECT_EQ(replace_all("/var/lib/teleop/sessions", (dir.path() / "sessions").string()), 1u);
+  // No real-time privileges are needed for the walk-through (refusals are warnings).
+  const fs::path file = dir.write("system.textproto", config);
+
+  Process slave("/sbin/ip", {"netns", "exec", hosts.slave_ns(), SLAVE_BIN, file.string()},
+                dir.path() / "slave.log");
+  Process master(MASTER_BIN, {file.string()}, dir.path() / "master.log");
+  Process supervisor(SUPERVISOR_BIN, {file.string()}, dir.path() / "supervisor.log");
+  const auto logs = [&] {
+    return "--- master\n" + master.log() + "--- slave\n" + slave.log() + "--- supervisor\n" +
+           supervisor.log();
+  };
+  const std::string console = " --key " + (keys / "console.key").string();
+  const auto status = [&]() -> std::optional<nlohmann::json> {
+    const CliResult r =
+        teleopctl("status --json --supervisor 192.168.50.10:5567" + console + " --server-key " +
+                      (keys / "supervisor.pub").string() + " --timeout-ms 1000",
+                  false);
+    if (r.exit_code != 0) return std::nullopt;
+    return nlohmann::json::parse(r.out);
+  };
+  // Both nodes' telemetry reaches the supervisor and the link carries states both ways.
+  std::optional<nlohmann::json> s;
+  ASSERT_TRUE(eventually([&] {
+    s = status();
+    return s && s->contains("master") && s->contains("slave") &&
+           (*s)["master"].value("alive", false) && (*s)["slave"].value("alive", false);
+  })) << (s ? s->dump(1) : std::string("no status"))
+      << logs();
+  for (const char* command : {"arm", "engage"}) {
+    for (const auto& [endpoint, pub] :
+         {std::pair{std::string("192.168.50.10:5562"), std::string("master.pub")},
+          std::pair{std::string("192.168.50.20:5563"), std::string("slave.pub")}}) {
+      const CliResult r = teleopctl("node " + endpoint + " " + command + console +
+                                    " --server-key " + (keys / pub).string());
+      ASSERT_EQ(r.exit_code, 0) << endpoint << " " << command << ": " << r.out << logs();
+    }
+  }
+  ASSERT_TRUE(eventually([&] {
+    s = status();
+    return s && (*s)["master"].value("mode", "") == "ENGAGED" &&
+           (*s)["slave"].value("mode", "") == "ENGAGED";
+  })) << (s ? s->dump(1) : std::string("no status"))
+      << logs();
+  // The supervisor records the session in the configured directory and analyses the
+  // configuration it runs: stable with the measured round trip.
+  EXPECT_EQ((*s)["report"].value("verdict", ""), "stable") << s->dump(1);
+  EXPECT_GE((*s)["report"].value("roundTripSamples", 0), 2) << s->dump(1);
+  EXPECT_NE(s->value("recordingFile", "").find((dir.path() / "sessions").string()),
+            std::string::npos)
+      << s->dump(1);
+  std::cout << "two machines engaged over CURVE: round trip "
+            << (*s)["master"]["link"].value("roundTripNs", "?") << " ns on the master\n";
 }
 
 }  // namespace

@@ -54,6 +54,42 @@ TEST(RelayPlanner, DropsDuplicatesAndReordersAtTheirRates) {
   EXPECT_EQ(copies, n - p.dropped + p.duplicated);
 }
 
+// --in-order: jitter of 3.5 +- 1.5 ms on a 1 ms stream would overtake itself about a third of
+// the time; in order, send times never decrease, no delay is below its own draw's band
+// (>= 2 ms), and a message is held only as long as the one before it.
+TEST(RelayPlanner, InOrderJitterNeverOvertakesAndHoldsNoLongerThanThePreviousMessage) {
+  RelayFaults f;
+  f.delay_ms = 3.5;
+  f.jitter_ms = 1.5;
+  f.seed = 11;
+  RelayFaults g = f;
+  g.in_order = true;
+  RelayPlanner free_running(f);
+  RelayPlanner in_order(g);
+  double last_free = -1.0;
+  double last = -1.0;
+  int overtaken = 0;
+  for (int i = 0; i < 10000; ++i) {
+    const double at_ms = i * 1.0;
+    const RelayPlan a = free_running.plan(at_ms * 1e-3);
+    const RelayPlan b = in_order.plan(at_ms * 1e-3);
+    ASSERT_EQ(b.delays_ms.size(), 1u);
+    if (at_ms + a.delays_ms[0] < last_free) ++overtaken;
+    last_free = at_ms + a.delays_ms[0];
+    // Same draws: the in-order delay is the free one, or raised to the previous send time.
+    const double send = at_ms + b.delays_ms[0];
+    EXPECT_GE(b.delays_ms[0], a.delays_ms[0]);
+    EXPECT_GE(b.delays_ms[0], 2.0);
+    EXPECT_LE(b.delays_ms[0], 5.0);
+    if (b.delays_ms[0] > a.delays_ms[0]) {
+      EXPECT_DOUBLE_EQ(send, last);
+    }
+    EXPECT_GE(send, last - 1e-9);  // (ms; rounding of the time arithmetic only)
+    last = send;
+  }
+  EXPECT_GT(overtaken, 1000);  // the free-running relay does reorder (about 1 in 4)
+}
+
 TEST(RelayPlanner, JitterStaysWithinItsBandAndAveragesToTheDelay) {
   RelayFaults f;
   f.delay_ms = 3.0;

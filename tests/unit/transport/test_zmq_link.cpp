@@ -509,6 +509,28 @@ TEST(KeyFiles, KeygenWritesPrivateKeyFilesThatLoadBack) {
   EXPECT_EQ(curve_public_from_secret(loaded.secret_z85), loaded.public_z85);
 }
 
+// A key file whose path is 40 characters of the Z85 alphabet (a temp dir's
+// "/tmp/teleop-nodes-XXXXXX/keys/master.pub" is one) is read as the file it names, not taken
+// for a key: found by the two-machine walk-through, where every handshake failed in silence.
+TEST(KeyFiles, AFortyCharacterPathIsReadAsTheFileItNames) {
+  // mkdtemp's characters and the name's are all in the Z85 alphabet.
+  std::string pattern = "/tmp/kfXXXXXX";
+  ASSERT_NE(::mkdtemp(pattern.data()), nullptr);
+  const fs::path dir = pattern;
+  std::ostringstream out;
+  std::ostringstream err;
+  ASSERT_EQ(ctl::run_keygen({(dir / "m").string()}, out, err), ctl::kExitOk) << err.str();
+  const CurveKeyPair loaded = load_secret_key_file(dir / "m.key");
+  // A name that makes the whole path exactly 40 characters: "/tmp/kfXXXXXX/" + 22 + ".pub".
+  const fs::path path = dir / (std::string(40 - dir.string().size() - 1 - 4, 'k') + ".pub");
+  ASSERT_EQ(path.string().size(), 40u) << path;
+  fs::copy_file(dir / "m.pub", path);
+  // The path is a well-formed key in its own right: the ambiguity is real.
+  EXPECT_FALSE(z85_key_problem(path.string()).has_value()) << path;
+  EXPECT_EQ(load_public_key(path.string()), loaded.public_z85) << path;
+  fs::remove_all(dir);
+}
+
 TEST(KeyFiles, KeygenRefusesToOverwriteWithoutForce) {
   const TempDir dir;
   const std::string name = (dir.path() / "slave").string();

@@ -1,0 +1,82 @@
+# Installation (`cmake --install`) and the Debian package (CPack DEB): issue 8.
+#
+#   cmake --install build --prefix /usr [--strip]     # or DESTDIR=/stage cmake --install ...
+#   scripts/package.sh                                # Release build in build-pkg/, then cpack
+#
+# Layout under the prefix (/usr for the package):
+#   bin/teleop-master, bin/teleop-slave, bin/teleop-supervisor, bin/teleopctl
+#   share/teleop/examples/...                  the examples/ tree
+#   share/doc/teleop/README.md
+#   lib/systemd/system/teleop-{master,slave,supervisor}.service   (TELEOP_SYSTEMD_UNIT_DIR)
+#   lib/sysusers.d/teleop.conf, lib/tmpfiles.d/teleop.conf, lib/udev/rules.d/70-teleop.rules
+# Nothing goes to /etc: the units read /etc/teleop/{master,slave,supervisor}.textproto, which
+# the administrator writes (from the examples); the package has no conffiles.
+include(GNUInstallDirs)
+
+set(TELEOP_SYSTEMD_UNIT_DIR "lib/systemd/system" CACHE STRING
+    "Where the systemd units are installed (relative to the install prefix, or absolute)")
+set(TELEOP_SYSUSERS_DIR "lib/sysusers.d" CACHE STRING "Where the sysusers.d file is installed")
+set(TELEOP_TMPFILES_DIR "lib/tmpfiles.d" CACHE STRING "Where the tmpfiles.d file is installed")
+set(TELEOP_UDEV_RULES_DIR "lib/udev/rules.d" CACHE STRING "Where the udev rules are installed")
+
+set(_teleop_deploy "${PROJECT_SOURCE_DIR}/deploy")
+
+install(TARGETS teleop-master teleop-slave teleop-supervisor teleopctl
+        RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+install(DIRECTORY "${PROJECT_SOURCE_DIR}/examples/" DESTINATION ${CMAKE_INSTALL_DATADIR}/teleop/examples)
+install(FILES "${PROJECT_SOURCE_DIR}/README.md" DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(FILES "${_teleop_deploy}/systemd/teleop-master.service"
+              "${_teleop_deploy}/systemd/teleop-slave.service"
+              "${_teleop_deploy}/systemd/teleop-supervisor.service"
+        DESTINATION ${TELEOP_SYSTEMD_UNIT_DIR})
+install(FILES "${_teleop_deploy}/sysusers.d/teleop.conf" DESTINATION ${TELEOP_SYSUSERS_DIR})
+install(FILES "${_teleop_deploy}/tmpfiles.d/teleop.conf" DESTINATION ${TELEOP_TMPFILES_DIR})
+install(FILES "${_teleop_deploy}/udev/70-teleop.rules" DESTINATION ${TELEOP_UDEV_RULES_DIR})
+# The units name /usr/bin/teleop-*: say so when the binaries go elsewhere.
+install(CODE [[
+  if(NOT CMAKE_INSTALL_PREFIX STREQUAL "/usr")
+    message(WARNING "teleop: installed under ${CMAKE_INSTALL_PREFIX}, but the systemd units "
+                    "start /usr/bin/teleop-*: install with --prefix /usr to use the units")
+  endif()
+]])
+
+# --- Debian package -------------------------------------------------------------------------
+set(CPACK_GENERATOR "DEB")
+set(CPACK_VERBATIM_VARIABLES ON)  # values reach CPackConfig.cmake unescaped
+set(CPACK_PACKAGE_NAME "teleop")
+set(CPACK_PACKAGE_VERSION "${PROJECT_VERSION}")
+set(CPACK_PACKAGE_VENDOR "teleop")
+set(CPACK_PACKAGE_CONTACT "teleop dev <dev@teleop.invalid>")
+set(CPACK_PACKAGE_DESCRIPTION_SUMMARY
+    "Bilateral teleoperation daemons with stable forbidden-region virtual fixtures")
+set(CPACK_PACKAGING_INSTALL_PREFIX "/usr")
+# Strip the installed executables (the build keeps its debug information).
+set(CPACK_STRIP_FILES ON)
+
+set(CPACK_DEBIAN_PACKAGE_NAME "teleop")
+set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)  # teleop_<version>_<arch>.deb
+set(CPACK_DEBIAN_PACKAGE_MAINTAINER "${CPACK_PACKAGE_CONTACT}")
+set(CPACK_DEBIAN_PACKAGE_SECTION "science")
+set(CPACK_DEBIAN_PACKAGE_PRIORITY "optional")
+# The extended description (the summary above is its first line); CPack indents it.
+set(CPACK_DEBIAN_PACKAGE_DESCRIPTION
+    "teleop-master and teleop-slave are the two real-time node processes of a bilateral
+teleoperator (1 kHz loops, haptic devices, a CURVE-secured ZeroMQ link); teleop-supervisor
+analyses the running system with its measured round trip, guards parameter changes and
+records sessions; teleopctl analyses configurations, simulates scenes and commands the nodes.
+Includes systemd units (installed disabled) and example configurations in
+/usr/share/teleop/examples.")
+# Depends from the shared libraries the executables link (dpkg-shlibdeps, package dpkg-dev).
+set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
+# systemd-sysusers creates the user when present; useradd (passwd) otherwise.
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "systemd")
+set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
+    "${_teleop_deploy}/debian/postinst" "${_teleop_deploy}/debian/prerm"
+    "${_teleop_deploy}/debian/postrm")
+set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION TRUE)
+
+# `package_source` (not used by scripts/package.sh): the sources without builds or sessions.
+set(CPACK_SOURCE_GENERATOR "TGZ")
+set(CPACK_SOURCE_IGNORE_FILES "/\\.git/" "/build[^/]*/" "/sessions/" "/node_modules/" "/out/")
+
+include(CPack)
