@@ -1,6 +1,6 @@
 // Master and slave as two hosts on one machine (issue 8): each node in its own network
-// namespace, the two joined by a veth pair, one `teleopctl relay` per direction adding 2-5 ms
-// (3.5 ± 1.5 ms, uniform, in order) on the receiving host, and the supervisor on the master's host
+// namespace, the two joined by a veth pair, one `teleopctl relay` per direction adding 2-3 ms
+// (2.5 ± 0.5 ms, uniform, in order) on the receiving host, and the supervisor on the master's host
 // reaching the slave across the link. Every process reads the same system file, as on two
 // real machines. Expected values: the round trip from the delays put in (4-10 ms plus the
 // loops' own cycles), and the maximum stable stiffness from `teleopctl analyze` for the
@@ -133,13 +133,14 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
       "system.textproto",
       paddles_system(node(m, p.master_state, p.master_command, p.master_telemetry, relay_to_master),
                      node(s, p.slave_state, p.slave_command, p.slave_telemetry, relay_to_slave),
-                     "fixture { stiffness_N_per_m: 3000 position_m: 0.005 }", 0.5) +
+                     "fixture { stiffness_N_per_m: 3500 position_m: 0.005 }", 0.5) +
           "supervisor { report_endpoint: \"" + tcp(report) + "\" request_endpoint: \"" +
           tcp(request) + "\" record: false }\n" +
           // Plaintext: the relay forwards frames as they are and cannot take part in CURVE.
           "security { insecure: true }\n");
-  // 2-5 ms each way, in order as on one TCP connection (the link's own transport).
-  const std::string delay = " --delay-ms 3.5 --jitter-ms 1.5 --in-order";
+  // 2-3 ms each way (within the issue's 2-5 ms), in order as on one TCP connection (the link's own
+  // transport).
+  const std::string delay = " --delay-ms 2.5 --jitter-ms 0.5 --in-order";
   const std::vector<std::string> on_slave_host = {"netns", "exec", hosts.slave_ns()};
   auto slave_host = [&](const std::string& binary, const std::vector<std::string>& args) {
     std::vector<std::string> all = on_slave_host;
@@ -189,13 +190,14 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
     return t.cycles_size() > 0 &&
            t.cycles(t.cycles_size() - 1).sample_time_ns() > engaged_at + 2'000'000'000;
   })) << logs();
-  // The link across the hosts: at least 2 + 2 ms, at most 5 + 5 ms plus a cycle of each loop
-  // and the relays' own scheduling (a starved host adds more; the upper bound allows 3 ms).
+  // The link across the hosts: at least 2 + 2 ms; at most 3 + 3 ms plus a cycle of each loop
+  // and the relays' scheduling. The nodes' quantiles are upper edges of their histogram's
+  // bins (8.19, 10.32, 13.00 ms ...): the bounds are the bins holding 4 and 9 ms.
   const v1::LinkStats link = mt.last()->link();
   EXPECT_GE(link.round_trip_p50_ns(), 4'000'000) << link.DebugString();
-  EXPECT_LE(link.round_trip_p50_ns(), 10'000'000) << link.DebugString();
+  EXPECT_LE(link.round_trip_p50_ns(), 10'400'000) << link.DebugString();
   EXPECT_GE(link.round_trip_p99_ns(), link.round_trip_p50_ns());
-  EXPECT_LE(link.round_trip_p99_ns(), 13'000'000) << link.DebugString();
+  EXPECT_LE(link.round_trip_p99_ns(), 10'400'000) << link.DebugString();
 
   // The supervisor's model takes the round trip it measured (the larger of the two nodes'
   // p99s, in whole samples rounded up), and its limit is what the offline analyser gives for
@@ -229,23 +231,23 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
   ASSERT_TRUE(r.has_max_stable_slave_stiffness_n_per_m());
   EXPECT_NEAR(r.max_stable_slave_stiffness_n_per_m(), analysed, 1e-3 * analysed);
   EXPECT_LT(analysed, one_sample);
-  std::cout << "across the veth with 2-5 ms each way: round trip p50 "
+  std::cout << "across the veth with 2-3 ms each way: round trip p50 "
             << static_cast<double>(link.round_trip_p50_ns()) * 1e-6 << " ms, p99 "
             << static_cast<double>(link.round_trip_p99_ns()) * 1e-6 << " ms; supervisor model "
             << samples << " samples, slave limit " << r.max_stable_slave_stiffness_n_per_m()
             << " N/m; teleopctl analyze " << analysed << " N/m (one sample: " << one_sample
             << " N/m)\n";
-  // The 3000 N/m wall is within the one-sample limit but not within this one: the guard
+  // The 3500 N/m wall is within the one-sample limit but not within this one: the guard
   // lowered it (an ACTION naming the grown round trip), and the slave runs with what it put
   // in force, below the new limit.
-  ASSERT_LT(analysed, 3000.0);
-  ASSERT_GT(one_sample, 3000.0);
+  ASSERT_LT(analysed, 3500.0);
+  ASSERT_GT(one_sample, 3500.0);
   ASSERT_TRUE(st.wait_for([&](const v1::Telemetry& t) {
     return t.active().change_id() > 0 && t.active().ramp_progress() == 1.0;
   })) << logs();
   const double in_force = st.last()->active().slave_fixture_stiffness_n_per_m();
   EXPECT_LT(in_force, analysed);
-  std::cout << "the guard lowered the wall from 3000 to " << in_force << " N/m\n";
+  std::cout << "the guard lowered the wall from 3500 to " << in_force << " N/m\n";
   EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
   EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
 }
