@@ -208,6 +208,8 @@ TEST(Relay, ABlackoutSendsTheSlaveSafeAtItsPeerTimeout) {
   ASSERT_NE(first_safe, cycles.begin());
   // The slave went safe at its 30 ms peer timeout (link.peer_timeout_ms default), no sooner
   // and within two cycles after, as its own cycle records show.
+  std::cout << "blackout: slave safe at peer age "
+            << static_cast<double>(first_safe->peer_age_ns()) * 1e-6 << " ms (timeout 30 ms)\n";
   EXPECT_GE(first_safe->peer_age_ns(), 30'000'000) << first_safe->DebugString();
   EXPECT_LE(first_safe->peer_age_ns(), 32'000'000) << first_safe->DebugString();
   EXPECT_EQ(std::prev(first_safe)->mode(), v1::ENGAGED);

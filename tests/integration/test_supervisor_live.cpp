@@ -10,6 +10,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <regex>
 #include <set>
@@ -782,14 +784,16 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
         30s);
     return found;
   };
-  const auto warning = find([](const v1::Alarm& a) {
-    return a.kind() == "oscillation" && a.severity() == v1::Alarm::WARNING;
-  });
-  ASSERT_TRUE(warning.has_value()) << describe(reports.alarms()) << sys.logs();
+  // The first ACTION that lowered the fixtures: the oscillation monitor's, as on a quiet host;
+  // or the round-trip guard's, when the host's measured round trip outgrew the pinned 3
+  // samples first (its p99 is a histogram bin's upper edge: 6.5 ms reads as 4 samples).
   const auto action = find([](const v1::Alarm& a) {
-    return a.kind() == "oscillation" && a.severity() == v1::Alarm::ACTION;
+    return a.severity() == v1::Alarm::ACTION &&
+           (a.kind() == "oscillation" || a.kind() == "round_trip") &&
+           a.action().find("lowered fixtures") != std::string::npos;
   });
   ASSERT_TRUE(action.has_value()) << describe(reports.alarms()) << sys.logs();
+  const bool by_round_trip = action->kind() == "round_trip";
   std::smatch m;
   ASSERT_TRUE(std::regex_search(
       action->action(), m, std::regex(R"(lowered fixtures \(change (\d+)\).*slave (\d+) N/m)")))
@@ -797,11 +801,6 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
   const std::uint64_t change = std::stoull(m[1]);
   const double lowered = std::stod(m[2]);
   EXPECT_LE(lowered, 0.5 * 4000.0 + 1.0);
-  EXPECT_LE(lowered, 0.5 * limit + 1.0);  // within the guard: half the analysed limit at most
-  // The warning came first; the supervisor acted once it had lasted escalation_ms (checked
-  // every 100 ms).
-  EXPECT_GE(action->time_ns() - warning->time_ns(), kEscalationNs - 100'000'000);
-  EXPECT_LT(warning->master_sequence(), action->master_sequence());
 
   // Half the peak-to-peak excursion of engaged positions in [from, to) on the node's clock.
   const auto amplitude = [](const std::vector<v1::CycleRecord>& c, std::int64_t from,
@@ -819,19 +818,48 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
     }
     return n > 10 ? 0.5 * (hi - lo) : -1.0;
   };
-  // The alarm's evidence is in the telemetry: the side it names swung by about that much in
-  // the half second before it.
-  const TelemetryTap& warned = warning->side() == "master" ? mt : st;
-  double evidence_mm = 0.0;
-  for (const auto& e : warning->evidence()) {
-    if (e.name() == "amplitude") evidence_mm = e.value();
+  if (by_round_trip) {
+    // Within the guard for the round trip it names: half the analysed limit at most.
+    std::smatch n;
+    ASSERT_TRUE(std::regex_search(action->message(), n, std::regex(R"(with a (\d+)-sample)")))
+        << describe(*action);
+    const CliResult at_n = teleopctl("analyze " + sys.config().string() +
+                                         " --max-stiffness slave --json --set "
+                                         "round_trip_delay_samples=" +
+                                         std::string(n[1]),
+                                     false);
+    const nlohmann::json limit_n =
+        nlohmann::json::parse(at_n.out)["limits"][0]["max_stable_stiffness_N_per_m"];
+    std::cout << "this host's round trip grew to " << n[1]
+              << " samples first: the round-trip guard lowered the wall to " << lowered
+              << " N/m (limit there " << limit_n.dump() << " N/m)\n";
+    if (limit_n.is_number()) {
+      EXPECT_LE(lowered, 0.5 * limit_n.get<double>() + 1.0);
+    }
+  } else {
+    EXPECT_LE(lowered, 0.5 * limit + 1.0);  // within the guard: half the analysed limit at most
+    const auto warning = find([](const v1::Alarm& a) {
+      return a.kind() == "oscillation" && a.severity() == v1::Alarm::WARNING;
+    });
+    ASSERT_TRUE(warning.has_value()) << describe(reports.alarms()) << sys.logs();
+    // The warning came first; the supervisor acted once it had lasted escalation_ms (checked
+    // every 100 ms).
+    EXPECT_GE(action->time_ns() - warning->time_ns(), kEscalationNs - 100'000'000);
+    EXPECT_LT(warning->master_sequence(), action->master_sequence());
+    // The alarm's evidence is in the telemetry: the side it names swung by about that much in
+    // the half second before it.
+    const TelemetryTap& warned = warning->side() == "master" ? mt : st;
+    double evidence_mm = 0.0;
+    for (const auto& e : warning->evidence()) {
+      if (e.name() == "amplitude") evidence_mm = e.value();
+    }
+    const double seen =
+        amplitude(warned.cycles(), warning->time_ns() - 500'000'000, warning->time_ns());
+    std::cout << warning->side() << " amplitude in the 0.5 s before the warning " << seen * 1e3
+              << " mm; the alarm's evidence " << evidence_mm << " mm\n";
+    EXPECT_GT(evidence_mm, 0.0);
+    EXPECT_GE(seen * 1e3, 0.5 * evidence_mm);
   }
-  const double seen =
-      amplitude(warned.cycles(), warning->time_ns() - 500'000'000, warning->time_ns());
-  std::cout << warning->side() << " amplitude in the 0.5 s before the warning " << seen * 1e3
-            << " mm; the alarm's evidence " << evidence_mm << " mm\n";
-  EXPECT_GT(evidence_mm, 0.0);
-  EXPECT_GE(seen * 1e3, 0.5 * evidence_mm);
 
   // Then either the lowered stiffness ramped in and the oscillation stopped, or the
   // supervisor disengaged both nodes (CRITICAL). Wait for whichever the system shows.
@@ -910,7 +938,15 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
               << " ms after the ACTION; slave amplitude before the ACTION " << just_before * 1e3
               << " mm, 0.5-1 s after " << after * 1e3 << " mm\n";
     ASSERT_GE(after, 0.0);
-    EXPECT_LT(after, 0.5 * just_before);
+    if (by_round_trip) {
+      // Lowered before the buzz built up: no oscillation ACTION followed it.
+      const auto alarms = reports.alarms();
+      EXPECT_FALSE(std::any_of(alarms.begin(), alarms.end(), [](const v1::Alarm& a) {
+        return a.kind() == "oscillation" && a.severity() == v1::Alarm::ACTION;
+      })) << describe(alarms);
+    } else {
+      EXPECT_LT(after, 0.5 * just_before);
+    }
     EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
     EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
     // The oscillation's change, or a later one of the guard that lowered it further.
@@ -1305,17 +1341,25 @@ TEST(SupervisorLive, RestartedSupervisorAdoptsTheParametersInForceAndRecordsInAN
   EXPECT_TRUE(mt.wait_for(in_force(k2, id1 + 1))) << sys.logs();
 }
 
-TEST(SupervisorLive, DiskFullStopsRecordingWithAnAlarmTheNodesGoOnAndTheFileKeepsItsChunks) {
+// The disk fills under the recorder: a CRITICAL "recorder" alarm and the error in the status,
+// the nodes engaged throughout, and the file within the room it had, every complete chunk
+// readable. `prepare` readies the sessions directory (what it returns is released after the
+// processes stop, before the directory goes; a non-empty `skip` skips the test) and `start`
+// starts the supervisor with `room` bytes to write.
+using Prepared = std::shared_ptr<void>;
+void disk_full(const std::function<Prepared(const fs::path&, std::string&)>& prepare,
+               const std::function<void(System&)>& start, std::uint64_t room) {
   TempDir dir;
   SystemPorts ports;
   const fs::path sessions = dir.path() / "sessions";
+  std::string skip;
+  const Prepared prepared = prepare(sessions, skip);
+  if (!skip.empty()) GTEST_SKIP() << skip;
   System sys(dir, paddles_config(ports, sessions, 0.5));
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
-  // 1 MB of room: full after about a second of two nodes' telemetry at 1 kHz.
-  constexpr std::uint64_t kLimit = 1'000'000;
-  sys.start_supervisor_with_file_limit(kLimit);
+  start(sys);
   sys.start_nodes();
   ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
   ASSERT_TRUE(supervisor_sees_both(ctx, ports.request)) << sys.logs();
@@ -1334,6 +1378,7 @@ TEST(SupervisorLive, DiskFullStopsRecordingWithAnAlarmTheNodesGoOnAndTheFileKeep
       },
       30s))
       << (status ? status->DebugString() : std::string()) << sys.logs();
+  std::cout << "recorder: " << status->recording_error() << "\n";
   // The nodes were not affected: engaged throughout, every cycle in their telemetry.
   for (const v1::CycleRecord& c : mt.cycles()) {
     if (c.mode() == v1::ENGAGED) continue;
@@ -1342,12 +1387,45 @@ TEST(SupervisorLive, DiskFullStopsRecordingWithAnAlarmTheNodesGoOnAndTheFileKeep
   }
   EXPECT_EQ(mt.mode(), v1::ENGAGED);
   EXPECT_EQ(st.mode(), v1::ENGAGED);
-  // The file: within the limit, and every complete chunk in it is readable.
+  // The file: within the room, and every complete chunk in it is readable.
   const std::vector<fs::path> files = session_files(sessions);
   ASSERT_EQ(files.size(), 1u);
-  EXPECT_LE(fs::file_size(files[0]), kLimit);
+  EXPECT_LE(fs::file_size(files[0]), room);
   const record::McapReader recovered = record::McapReader::recover(files[0]);
   EXPECT_GT(recovered.messages().size(), 100u);
+}
+
+// A file-size limit (RLIMIT_FSIZE, util-linux prlimit) of 1 MB: past it a write fails with
+// EFBIG, through the recorder's path for a full disk. Runs anywhere.
+TEST(SupervisorLive, DiskFullStopsRecordingWithAnAlarmTheNodesGoOnAndTheFileKeepsItsChunks) {
+  constexpr std::uint64_t kLimit = 1'000'000;
+  disk_full([](const fs::path&, std::string&) { return Prepared(); },
+            [&](System& sys) { sys.start_supervisor_with_file_limit(kLimit); }, kLimit);
+}
+
+// A real full file system: the sessions directory on a 1 MiB tmpfs (ENOSPC). Needs root to
+// mount; skipped, saying so, without.
+TEST(SupervisorLive, FullTmpfsUnderTheRecorderStopsRecordingWithAnAlarmTheNodesGoOn) {
+  constexpr std::uint64_t kRoom = 1024 * 1024;
+  disk_full(
+      [](const fs::path& sessions, std::string& skip) -> Prepared {
+        if (::geteuid() != 0) {
+          skip = "mounting a tmpfs needs root";
+          return nullptr;
+        }
+        fs::create_directories(sessions);
+        const std::string cmd = "mount -t tmpfs -o size=" + std::to_string(kRoom) + " tmpfs '" +
+                                sessions.string() + "'";
+        if (std::system((cmd + " 2>/dev/null").c_str()) != 0) {
+          skip = "cannot mount a tmpfs here: " + cmd;
+          return nullptr;
+        }
+        // Unmounted once the supervisor is gone (lazily, should anything still hold it).
+        return Prepared(nullptr, [at = sessions](void*) {
+          (void)std::system(("umount -l '" + at.string() + "'").c_str());
+        });
+      },
+      [](System& sys) { sys.start_supervisor(); }, kRoom);
 }
 
 }  // namespace
