@@ -2,7 +2,8 @@
 # The stress, soak and fault campaign (issue 7) in one command, with a report at the end:
 #   ./scripts/campaign.sh            the full campaign (about 20 minutes: 10-minute soak)
 #   ./scripts/campaign.sh --short    the CI version (a few minutes)
-# Environment: SOAK_S (soak seconds), FUZZ_S (seconds per fuzz target), CASES (analyser cases).
+# Environment: SOAK_S (soak seconds), FUZZ_S (seconds per fuzz target), CASES (analyser cases),
+# PARTS (a subset of: analyser faults fuzz soak).
 # Parts: the analyser against the 50-digit reference; the live fault table (relay faults, CPU
 # load, kills and restarts, disk full, e-stop); fuzzing of every outside-input parser; a soak
 # of the simulated system with recording. Exit status non-zero when any part fails.
@@ -16,6 +17,9 @@ else
   : "${SOAK_S:=600}" "${FUZZ_S:=120}" "${CASES:=5000}"
 fi
 report=()
+# PARTS: which parts to run, from analyser faults fuzz soak (default: all).
+: "${PARTS:=analyser faults fuzz soak}"
+want() { [[ " $PARTS " == *" $1 "* ]]; }
 failed=0
 note() { report+=("$1"); }
 part() { echo; echo "== $1"; }
@@ -23,6 +27,7 @@ part() { echo; echo "== $1"; }
 ./scripts/build.sh >/dev/null || { echo "campaign: build failed"; exit 1; }
 ctl=./build/supervisor/teleopctl/teleopctl
 
+if want analyser; then
 part "analyser against the 50-digit reference ($CASES seeded cases)"
 if [[ -x build/bench/bench_campaign_analyser ]]; then
   if build/bench/bench_campaign_analyser --cases "$CASES" | tee /tmp/teleop-campaign-analyser.txt; then
@@ -36,6 +41,8 @@ else
   failed=1
 fi
 
+fi
+if want faults; then
 part "faults on the live system (loopback)"
 faults='^(Relay\.|Nodes\.(SlaveKilled|RestartedSlave|EStop|DeviceFault|NaNPosition|HundredThousand)|SupervisorLive\.(KillNine|Restarted|DiskFull|BuzzingWall)|NodesCurve\.Unlisted|Console\.EstopGoesStraight|TwoHosts\.)'
 if (cd build && ctest -R "$faults" --verbose 2>&1 | tee /tmp/teleop-campaign-faults.txt |
@@ -47,6 +54,8 @@ else
   failed=1
 fi
 
+fi
+if want fuzz; then
 part "fuzzing every outside-input parser (${FUZZ_S} s per target)"
 if [[ -x scripts/fuzz.sh ]]; then
   if bash scripts/fuzz.sh "$FUZZ_S" | tee /tmp/teleop-campaign-fuzz.txt; then
@@ -60,6 +69,8 @@ else
   failed=1
 fi
 
+fi
+if want soak; then
 part "soak: the simulated system with recording for ${SOAK_S} s"
 dir=$(mktemp -d /tmp/teleop-soak-XXXXXX)
 "$ctl" launch examples/live.textproto --duration "$SOAK_S" --record-dir "$dir/sessions" \
@@ -112,6 +123,7 @@ else
   [[ "$drops" == "0" && "$missing" == "0" && $growth == 0 ]] || failed=1
 fi
 
+fi
 echo
 echo "== campaign report"
 for line in "${report[@]}"; do echo "- $line"; done
