@@ -108,7 +108,7 @@ else
   growth=0
   for col in 2 3 4; do
     name=$(head -n 1 "$dir/rss.csv" | cut -d, -f"$col")
-    line=$(awk -F, -v c="$col" 'NR > 1 && $c != "" { t[n] = $1; r[n] = $c; n++ }
+    line=$(awk -F, -v c="$col" 'BEGIN { n = 0 } NR > 1 && $c != "" { t[n] = $1; r[n] = $c; n++ }
       END {
         if (n < 2) { print "? ? 0 0"; exit }
         h = int(n / 2); sx = sy = sxx = sxy = 0; m = n - h

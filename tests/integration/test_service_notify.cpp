@@ -15,6 +15,7 @@
 #include <algorithm>
 
 #include "tests/integration/node_harness.hpp"
+#include "tests/support/sanitizer.hpp"
 
 namespace teleop::test {
 namespace {
@@ -296,18 +297,6 @@ std::string read_text(const fs::path& p) {
   ss << in.rdbuf();
   return ss.str();
 }
-
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kAddressSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kAddressSanitizer = true;
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
 
 TEST(ServiceNotify, RefusedFifoExplainedAndFatal) {
   if (::geteuid() != 0) {

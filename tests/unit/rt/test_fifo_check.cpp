@@ -20,6 +20,7 @@
 
 #include "common/rt/fifo_check.hpp"
 #include "common/rt/periodic_loop.hpp"
+#include "tests/support/sanitizer.hpp"
 
 namespace teleop::rt {
 namespace {
@@ -329,18 +330,6 @@ TEST(FifoFacts, SystemFilesMatchTheirOwnReads) {
   EXPECT_GT(f.mapped_bytes, 4096u);
 }
 
-#if defined(__SANITIZE_ADDRESS__)
-constexpr bool kAddressSanitizer = true;
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-constexpr bool kAddressSanitizer = true;
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
-#else
-constexpr bool kAddressSanitizer = false;
-#endif
-
 // A child without CAP_SYS_NICE and CAP_IPC_LOCK and with RLIMIT_RTPRIO 0 and a 64 KiB
 // RLIMIT_MEMLOCK asks for SCHED_FIFO and mlockall: the kernel refuses both, and each refusal
 // says why with the child's own numbers.
@@ -366,7 +355,7 @@ TEST(FifoFacts, TheKernelsRefusalIsExplained) {
     s.fifo_priority = 10;
     s.lock_memory = true;
     const std::vector<std::string> refused = apply_rt_settings(s);
-    if (kAddressSanitizer) {
+    if (test::kAddressSanitizer) {
       // ASan's runtime intercepts mlockall and returns success: only SCHED_FIFO is refused.
       if (refused.size() != 1) {
         out += "refused " + std::to_string(refused.size()) + " settings under ASan; ";
