@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <deque>
+#include <utility>
 #include <vector>
 
 #include "common/scene/oscillation.hpp"
@@ -74,6 +76,27 @@ class PassivityObserver {
   double energy_J_{0.0};
   double min_energy_J_{0.0};
   std::deque<double> history_{};
+};
+
+// The round trip the supervisor's model is built on: the largest round-trip p99 the nodes
+// reported over the last `hold_ns`. It goes up at once (the safe side) and comes down only
+// once the shorter round trip has held that long, so a p99 on a sample boundary does not
+// flap the model (and the alarms announcing each change) at every check.
+class RoundTripModel {
+ public:
+  explicit RoundTripModel(std::int64_t hold_ns) : hold_ns_(hold_ns) {}
+  // The largest of the last `hold_ns`, `p99_ns` (measured at `now_ns`) included.
+  std::int64_t add(std::int64_t now_ns, std::int64_t p99_ns) {
+    while (!seen_.empty() && seen_.back().second <= p99_ns) seen_.pop_back();
+    seen_.emplace_back(now_ns, p99_ns);
+    while (now_ns - seen_.front().first > hold_ns_) seen_.pop_front();
+    return seen_.front().second;
+  }
+
+ private:
+  std::int64_t hold_ns_;
+  // (time, p99), p99 strictly decreasing from the front: the front is the window's largest.
+  std::deque<std::pair<std::int64_t, std::int64_t>> seen_{};
 };
 
 }  // namespace teleop::supervisor

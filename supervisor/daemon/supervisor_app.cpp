@@ -32,6 +32,9 @@ namespace {
 
 using namespace std::chrono_literals;
 
+// The model's round trip comes down only after the shorter one has held this long.
+constexpr std::int64_t kRoundTripHoldNs = 5'000'000'000;
+
 std::int64_t monotonic_ns() {
   timespec ts{};
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -191,9 +194,12 @@ struct SupervisorApp::Impl {
     const std::string key = kind + "/" + side;
     const std::int64_t now = monotonic_ns();
     auto it = last_alarm_ns.find(key);
-    if (severity < v1::Alarm::ACTION && kind != "command" && it != last_alarm_ns.end() &&
-        now - it->second < 2'000'000'000) {
-      return;  // one of a kind per side per 2 s, unless the supervisor acted
+    // One of a kind per side per 2 s, unless the supervisor acted, or it is a command's, or a
+    // change of the model (its own hold keeps those apart): the newest alarm of those kinds is
+    // always what is in force.
+    if (severity < v1::Alarm::ACTION && kind != "command" && kind != "round_trip" &&
+        it != last_alarm_ns.end() && now - it->second < 2'000'000'000) {
+      return;
     }
     last_alarm_ns[key] = now;
     v1::Alarm a;
@@ -394,6 +400,8 @@ struct SupervisorApp::Impl {
     for (NodeView* n : {&master, &slave}) {
       if (n->last) rtt = std::max(rtt, n->last->link().round_trip_p99_ns());
     }
+    // The model's round trip: the largest measured over the last 5 s (down only after that).
+    if (rtt > 0) rtt = round_trip_model.add(now, rtt);
     measured_round_trip_ns = rtt;
     if (rtt > 0) {
       const double period_ns = 1e9 / next.sample_rate_hz;
@@ -819,6 +827,8 @@ struct SupervisorApp::Impl {
   LiveInputs live{};
   std::int64_t measured_round_trip_ns{0};
   // The round-trip guard's lowering was refused (retried at every check).
+  // Up at once, down after 5 s of the shorter round trip.
+  RoundTripModel round_trip_model{kRoundTripHoldNs};
   bool lowering_pending{false};
   std::int64_t last_lowering_try_ns{0};
   std::uint64_t change_id{0};

@@ -9,7 +9,13 @@
 namespace teleop::ctl {
 namespace {
 
-constexpr int kMessageRows = 3;
+// The message area above the key line: at least 3 rows, and up to 6 when the alarms leave
+// them free, so that a prediction and its verdict are on screen whole.
+constexpr int kMinMessageRows = 3;
+constexpr int kMaxMessageRows = 6;
+// An alarm takes a second row (its evidence, its action) while the rows allow it.
+constexpr int kAlarmRows = 2;
+constexpr std::size_t kAlarmIndent = 9;  // continuation rows start under the message
 
 std::string fit(std::string s, int cols) {
   if (cols <= 0) return {};
@@ -21,6 +27,30 @@ std::string pad(std::string s, std::size_t width) {
   if (s.size() > width) s.resize(width);
   s.append(width - s.size(), ' ');
   return s;
+}
+
+// Word wrap to `cols`: breaks at the last space that fits (a word longer than a row is cut),
+// continuation rows indented by `indent`.
+std::vector<std::string> wrap(const std::string& text, int cols, std::size_t indent = 0) {
+  const auto width = static_cast<std::size_t>(std::max(1, cols));
+  if (indent + 8 > width) indent = 0;
+  std::vector<std::string> out;
+  std::string rest = text;
+  std::string lead;
+  while (lead.size() + rest.size() > width) {
+    const std::size_t room = width - lead.size();
+    std::size_t cut = rest.rfind(' ', room);
+    std::size_t next = cut + 1;
+    if (cut == std::string::npos || cut == 0) {
+      cut = room;
+      next = room;
+    }
+    out.push_back(lead + rest.substr(0, cut));
+    rest = rest.substr(next);
+    lead.assign(indent, ' ');
+  }
+  out.push_back(lead + rest);
+  return out;
 }
 
 std::string mode_name(const v1::NodeSummary& n) {
@@ -310,29 +340,37 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
                                   s.recorded_messages(), s.recording_drops()));
     }
     lines.push_back(fmt::format("alarms (newest first): {}", s.recent_alarms_size()));
-    // Alarms fill what is left above the message lines and the key line.
-    const int room = std::max(0, rows - static_cast<int>(lines.size()) - kMessageRows - 1);
-    for (int i = 0; i < room; ++i) {
-      lines.push_back(i < s.recent_alarms_size() ? alarm_row(s.recent_alarms(i), s.time_ns())
-                                                 : std::string());
-    }
   }
-  // Messages (the newest at the bottom, wrapped), the prompt, the keys.
-  while (static_cast<int>(lines.size()) < rows - kMessageRows - 1) lines.emplace_back("");
+  // What is left above the key line goes to the alarms and the messages.
+  const int free_rows = std::max(0, rows - static_cast<int>(lines.size()) - 1);
+  // Messages, bottom up: the prompt, then the newest message's rows, ... (word-wrapped).
   std::vector<std::string> area;
   if (!view.prompt.empty()) area.push_back(view.prompt);
-  const std::size_t width = static_cast<std::size_t>(std::max(1, cols));
   for (auto m = view.messages.rbegin();
-       m != view.messages.rend() && static_cast<int>(area.size()) < kMessageRows; ++m) {
-    std::vector<std::string> wrapped;
-    for (std::size_t i = 0; i < m->size(); i += width) wrapped.push_back(m->substr(i, width));
-    if (wrapped.empty()) wrapped.emplace_back();
+       m != view.messages.rend() && static_cast<int>(area.size()) < kMaxMessageRows; ++m) {
+    const std::vector<std::string> wrapped = wrap(*m, cols);
     for (auto w = wrapped.rbegin();
-         w != wrapped.rend() && static_cast<int>(area.size()) < kMessageRows; ++w) {
+         w != wrapped.rend() && static_cast<int>(area.size()) < kMaxMessageRows; ++w) {
       area.push_back(*w);
     }
   }
-  while (static_cast<int>(area.size()) < kMessageRows) area.emplace_back();
+  const int alarms = view.help ? 0 : s.recent_alarms_size();
+  const int message_rows =
+      std::min(free_rows, std::clamp(static_cast<int>(area.size()), kMinMessageRows,
+                                     std::max(kMinMessageRows, free_rows - alarms)));
+  area.resize(static_cast<std::size_t>(std::max(0, message_rows)));
+  // Alarms, newest first, each on up to kAlarmRows rows while every later one still gets one.
+  int room = free_rows - message_rows;
+  for (int i = 0; i < alarms && room > 0; ++i) {
+    const std::vector<std::string> rows_of =
+        wrap(alarm_row(s.recent_alarms(i), s.time_ns()), cols, kAlarmIndent);
+    const int later = std::min(alarms - i - 1, room - 1);
+    const int take =
+        std::clamp(static_cast<int>(rows_of.size()), 1, std::min(kAlarmRows, room - later));
+    for (int r = 0; r < take; ++r) lines.push_back(rows_of[static_cast<std::size_t>(r)]);
+    room -= take;
+  }
+  while (static_cast<int>(lines.size()) < rows - message_rows - 1) lines.emplace_back("");
   for (auto l = area.rbegin(); l != area.rend(); ++l) lines.push_back(*l);
   std::string keys;
   if (view.replay) {

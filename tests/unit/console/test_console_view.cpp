@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "supervisor/teleopctl/console_view.hpp"
@@ -210,7 +211,7 @@ TEST(ConsoleScreen, AlarmsNewestFirstWithTheirAgeEvidenceAndAction) {
   EXPECT_NE(second->find("-10.0s"), std::string::npos) << *second;
 }
 
-TEST(ConsoleScreen, ALongMessageWrapsSoItsEndIsOnScreen) {
+TEST(ConsoleScreen, ALongMessageWrapsAtWordsSoItsEndIsOnScreen) {
   ConsoleView v;
   v.status = engaged_status();
   const std::string reason =
@@ -218,10 +219,83 @@ TEST(ConsoleScreen, ALongMessageWrapsSoItsEndIsOnScreen) {
       "damping ratio -0.0324, round trip 1 samples)";
   v.messages = {"older", reason};
   const std::vector<std::string> lines = render_console(v, 24, 80);
-  // 116 characters: rows 21 and 22 hold it (80 + 36), row 20 the older message.
+  // 123 characters: the last space within 80 columns is the one after "teleoperator" (73), so
+  // rows 21 and 22 hold it at that word; row 20 the older message.
   EXPECT_EQ(lines[20], "older");
-  EXPECT_EQ(lines[21], reason.substr(0, 80));
-  EXPECT_EQ(lines[22], reason.substr(80));
+  EXPECT_EQ(lines[21], "REFUSED by the supervisor: the analyser predicts an unstable teleoperator");
+  EXPECT_EQ(lines[22], "(minimum damping ratio -0.0324, round trip 1 samples)");
+}
+
+TEST(ConsoleScreen, APredictionAndItsVerdictAreBothWholeWhenTheAlarmsLeaveRoom) {
+  // What the set key shows for a change predicted unstable: two messages of two rows each.
+  // With no alarm the 24 rows leave 7 free (24 - 16 fixed - the key line), so the message area
+  // grows from 3 to 4 rows and the prediction's first row stays on screen.
+  ConsoleView v;
+  v.status = engaged_status();
+  v.messages = {
+      "prediction for slave.fixture.stiffness_N_per_m=9000: unstable, zeta min -0.0720 "
+      "(required 0.0000), slave max 4344 N/m",
+      "REFUSED by the supervisor: the analyser predicts an unstable teleoperator (minimum "
+      "damping ratio -0.0720, round trip 1 samples)"};
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u);
+  EXPECT_EQ(lines[19],
+            "prediction for slave.fixture.stiffness_N_per_m=9000: unstable, zeta min -0.0720");
+  EXPECT_EQ(lines[20], "(required 0.0000), slave max 4344 N/m");
+  EXPECT_EQ(lines[21], "REFUSED by the supervisor: the analyser predicts an unstable teleoperator");
+  EXPECT_EQ(lines[22], "(minimum damping ratio -0.0720, round trip 1 samples)");
+  EXPECT_EQ(lines[23].rfind("x E-STOP", 0), 0u);
+}
+
+v1::Alarm* add_alarm(v1::SupervisorStatus& s, std::int64_t time_ns, const std::string& message) {
+  v1::Alarm* a = s.add_recent_alarms();
+  a->set_time_ns(time_ns);
+  a->set_severity(v1::Alarm::WARNING);
+  a->set_kind("oscillation");
+  a->set_side("slave");
+  a->set_message(message);
+  return a;
+}
+
+TEST(ConsoleScreen, AnAlarmsEvidenceWrapsOntoASecondRowWhileTheRowsAllowIt) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v1::Alarm* a = add_alarm(*v.status, 98'000'000'000, "sustained oscillation");
+  for (const auto& [name, value, unit] :
+       {std::tuple{"amplitude", 0.541, "mm"}, std::tuple{"frequency", 16.0, "Hz"},
+        std::tuple{"previous_amplitude", 0.143, "mm"}}) {
+    v1::Evidence* e = a->add_evidence();
+    e->set_name(name);
+    e->set_value(value);
+    e->set_unit(unit);
+  }
+  // "   -2.0s WARN oscillation slave: sustained oscillation amplitude=0.541mm frequency=16Hz
+  // previous_amplitude=0.143mm" is 114 characters; the last space within 80 columns is the
+  // one at 72, before "frequency": the rest goes on a second row under the message (9
+  // columns in).
+  std::vector<std::string> lines = render_console(v, 24, 80);
+  EXPECT_EQ(lines[16], "   -2.0s WARN oscillation slave: sustained oscillation amplitude=0.541mm");
+  EXPECT_EQ(lines[17], "         frequency=16Hz previous_amplitude=0.143mm");
+
+  // Seven alarms: the message area keeps its 3 rows, which leaves 7 - 3 = 4 rows, so the
+  // newest four alarms get one row each, newest first.
+  for (int i = 1; i <= 6; ++i)
+    add_alarm(*v.status, 90'000'000'000 - i, "older " + std::to_string(i));
+  v.messages = {"a message"};
+  lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u);
+  EXPECT_EQ(lines[16].rfind("   -2.0s WARN oscillation slave: sustained oscillation amplitude=", 0),
+            0u)
+      << joined(lines);
+  EXPECT_NE(lines[17].find("older 1"), std::string::npos) << joined(lines);
+  EXPECT_NE(lines[19].find("older 3"), std::string::npos) << joined(lines);
+  EXPECT_EQ(lines[22], "a message");
+
+  // Two alarms in the same room: the first takes its two rows, the second one.
+  v.status->mutable_recent_alarms()->DeleteSubrange(2, 5);
+  lines = render_console(v, 24, 80);
+  EXPECT_EQ(lines[17], "         frequency=16Hz previous_amplitude=0.143mm") << joined(lines);
+  EXPECT_NE(lines[18].find("older 1"), std::string::npos) << joined(lines);
 }
 
 TEST(ConsoleScreen, ReadOnlyReplayAndHelpScreens) {

@@ -234,6 +234,31 @@ TEST(OscillationMonitor, ATwoAndAHalfCountLimitCycleIsOneAtItsFrequencyUntilItSt
   EXPECT_LE(*last, 3.0 + 1.0 / kF + 0.002);
 }
 
+TEST(RoundTripModel, UpAtOnceDownOnlyOnceTheShorterRoundTripHasHeldFiveSeconds) {
+  // Checks every 100 ms; the nodes' p99 sits at 0.9 ms, jumps to 1.2 ms for one check at 1 s,
+  // then flaps 0.95 / 1.05 ms every check from 2 s to 4 s, then stays at 0.6 ms.
+  constexpr std::int64_t kS = 1'000'000'000;
+  RoundTripModel model(5 * kS);
+  auto p99 = [](std::int64_t t) -> std::int64_t {
+    if (t == kS) return 1'200'000;
+    if (t >= 2 * kS && t < 4 * kS) return (t / (kS / 10)) % 2 == 0 ? 950'000 : 1'050'000;
+    return t < 2 * kS ? 900'000 : 600'000;
+  };
+  std::vector<std::pair<std::int64_t, std::int64_t>> changes;  // (time, held) when it moved
+  std::int64_t held = 0;
+  for (std::int64_t t = 0; t <= 12 * kS; t += kS / 10) {
+    const std::int64_t now = model.add(t, p99(t));
+    if (now != held) changes.emplace_back(t, now);
+    held = now;
+  }
+  // By hand: 0.9 ms at once; 1.2 ms at 1 s, held through 6 s (5 s later); at 6.1 s the
+  // largest of the last 5 s is the flapping's 1.05 ms (the last at 3.9 s), held through
+  // 8.9 s; at 9 s it is 0.6 ms. The flapping itself never moved the model.
+  const std::vector<std::pair<std::int64_t, std::int64_t>> expected = {
+      {0, 900'000}, {kS, 1'200'000}, {6 * kS + kS / 10, 1'050'000}, {8 * kS + kS, 600'000}};
+  EXPECT_EQ(changes, expected);
+}
+
 TEST(PassivityObserver, AFreeMassDamperOnlyAbsorbsEnergyAndItsStoredEnergyIsExact) {
   // m x'' = F - b x', pushed with 1 N for 0.5 s then released: the energy in through the port
   // is the kinetic energy plus what the damper dissipated, never negative.
