@@ -9,6 +9,7 @@
 #include <atomic>
 #include <chrono>
 #include <optional>
+#include <regex>
 #include <zmq.hpp>
 
 #include "common/config/config_loader.hpp"
@@ -429,32 +430,31 @@ class Console {
 
   // --- replay ----------------------------------------------------------------------------
   void on_replay_key(int ch) {
-    const v1::ReplayPosition* r = view_.status ? &view_.status->replay() : nullptr;
-    const double pos = r ? r->position_s() : 0.0;
-    const double speed = r && r->speed() > 0.0 ? r->speed() : 1.0;
+    // Relative requests: the replay applies each to its own state, so keys pressed faster
+    // than the summary comes back add up (two '[' are a quarter of the speed).
     switch (ch) {
       case ' ':
-        replay_control(r && r->state() == "playing" ? "pause" : "resume");
+        replay_control("toggle");
         break;
       case ',':
       case KEY_LEFT:
-        replay_control(fmt::format("seek {:.3f}", std::max(0.0, pos - 5.0)));
+        replay_control("seek -5");
         break;
       case '.':
       case KEY_RIGHT:
-        replay_control(fmt::format("seek {:.3f}", pos + 5.0));
+        replay_control("seek +5");
         break;
       case '<':
-        replay_control(fmt::format("seek {:.3f}", std::max(0.0, pos - 30.0)));
+        replay_control("seek -30");
         break;
       case '>':
-        replay_control(fmt::format("seek {:.3f}", pos + 30.0));
+        replay_control("seek +30");
         break;
       case '[':
-        replay_control(fmt::format("speed {:g}", speed / 2.0));
+        replay_control("speed x0.5");
         break;
       case ']':
-        replay_control(fmt::format("speed {:g}", speed * 2.0));
+        replay_control("speed x2");
         break;
       case '0':
         replay_control("seek 0");
@@ -475,7 +475,25 @@ class Console {
       zmq::socket_t client =
           transport::make_command_client(ctx, a_.control, {}, std::chrono::milliseconds(1000));
       const auto reply = transport::request_reply(client, text);
-      say(reply ? "replay: " + *reply : "replay: NO REPLY on " + a_.control);
+      if (!reply) {
+        say("replay: NO REPLY on " + a_.control);
+        return;
+      }
+      // The reply is the replay's own state ("paused at 12.500000 s of 20.000000 s; speed 1;
+      // ..."): taken at once, so that the next key (a second '[') starts from it rather than
+      // from a summary that has not caught up yet, and said in short.
+      std::smatch m;
+      static const std::regex kState(R"(^(\w+) at ([0-9.]+) s of ([0-9.]+) s; speed ([^;]+);)");
+      if (std::regex_search(*reply, m, kState) && view_.status) {
+        v1::ReplayPosition* r = view_.status->mutable_replay();
+        r->set_state(m[1]);
+        r->set_position_s(std::stod(m[2]));
+        r->set_speed(std::stod(m[4]));
+        say(fmt::format("replay: {} at {:.1f} s of {:.1f} s, speed x{:g}", r->state(),
+                        r->position_s(), std::stod(m[3]), r->speed()));
+      } else {
+        say("replay: " + *reply);
+      }
     } catch (const std::exception& e) {
       say(std::string("replay: ") + e.what());
     }

@@ -29,8 +29,8 @@ std::string pad(std::string s, std::size_t width) {
   return s;
 }
 
-// Word wrap to `cols`: breaks at the last space that fits (a word longer than a row is cut),
-// continuation rows indented by `indent`.
+// Word wrap to `cols`: breaks at the last space that fits, or at the width when that space
+// would leave more than half the row empty; continuation rows indented by `indent`.
 std::vector<std::string> wrap(const std::string& text, int cols, std::size_t indent = 0) {
   const auto width = static_cast<std::size_t>(std::max(1, cols));
   if (indent + 8 > width) indent = 0;
@@ -41,7 +41,9 @@ std::vector<std::string> wrap(const std::string& text, int cols, std::size_t ind
     const std::size_t room = width - lead.size();
     std::size_t cut = rest.rfind(' ', room);
     std::size_t next = cut + 1;
-    if (cut == std::string::npos || cut == 0) {
+    // No space in the row's second half (a long path): cut at the width rather than leave
+    // most of the row empty.
+    if (cut == std::string::npos || cut < room / 2) {
       cut = room;
       next = room;
     }

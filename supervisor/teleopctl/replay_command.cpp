@@ -1225,17 +1225,32 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
         anchor_wall = Clock::now();
         playing = next < items.size();
         reply = status(state_name(), p);
+      } else if (verb == "toggle" && words.size() == 1) {
+        // Pause when playing, resume when paused: a console's key that never acts on a state
+        // it has not seen yet.
+        anchor_pos = p;
+        anchor_wall = Clock::now();
+        playing = !playing && next < items.size();
+        reply = status(state_name(), p);
       } else if (verb == "seek" && words.size() == 2) {
-        const double s = parse_number(words[1], "seek");
-        if (s < 0.0) throw UsageError("seek: a position from 0 s on");
+        // "seek 12.5" goes to 12.5 s; "seek +5" / "seek -5" moves from where the replay is
+        // (clamped to the file), so that keys pressed quickly add up.
+        const bool relative = words[1].front() == '+' || words[1].front() == '-';
+        // (from_chars takes no '+')
+        double s = parse_number(words[1].front() == '+' ? words[1].substr(1) : words[1], "seek");
+        if (relative) s = std::max(0.0, p + s);
+        if (s < 0.0) throw UsageError("seek: a position from 0 s on (+S/-S: relative)");
         anchor_pos = std::min(s, duration_s);
         anchor_wall = Clock::now();
         next = 0;
         while (next < items.size() && pos_of(next) < anchor_pos) ++next;
         reply = status(state_name(), anchor_pos);
       } else if (verb == "speed" && words.size() == 2) {
-        const double x = parse_number(words[1], "speed");
-        if (!(x > 0.0)) throw UsageError("speed: must be positive");
+        // "speed 2" plays at 2x; "speed x2" / "speed x0.5" multiplies the speed in force.
+        const bool factor = words[1].front() == 'x';
+        double x = parse_number(factor ? words[1].substr(1) : words[1], "speed");
+        if (factor) x *= speed;
+        if (!(x > 0.0) || !std::isfinite(x)) throw UsageError("speed: must be positive");
         anchor_pos = p;
         anchor_wall = Clock::now();
         speed = x;
@@ -1247,8 +1262,8 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
         reply = status("stopped", p);
       } else {
         reply = fmt::format(
-            "error: unknown request '{}' (pause, resume, seek SECONDS, speed X, "
-            "status, stop)",
+            "error: unknown request '{}' (pause, resume, toggle, seek SECONDS|+S|-S, "
+            "speed X|xF, status, stop)",
             request);
       }
     } catch (const UsageError& e) {
@@ -1587,8 +1602,9 @@ std::string replay_usage() {
          "'report'|'alarm',\n"
          "                 message), from the recorded /config unless --set or the endpoint flags\n"
          "                 say otherwise. Control (REQ/REP, plain text) on --control (default\n"
-         "                 tcp://127.0.0.1:5568): pause, resume, seek SECONDS, speed X, status,\n"
-         "                 stop; each reply gives the position. --paused starts paused; --hold\n"
+         "                 tcp://127.0.0.1:5568): pause, resume, toggle, seek SECONDS (+S, -S:\n"
+         "                 from here), speed X (xF: times the speed in force), status, stop;\n"
+         "                 each reply gives the position. --paused starts paused; --hold\n"
          "                 keeps the control endpoint up at the end until 'stop'. Ten times a\n"
          "                 second, playing, paused or held, the report endpoint also carries the\n"
          "                 supervisor's summary stream ('status'|teleop.v1.SupervisorStatus, "

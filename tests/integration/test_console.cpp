@@ -588,6 +588,143 @@ TEST(Console, ReplayCanBePausedAndResumed) {
   std::cout << screen;
 }
 
+TEST(Console, ReplaySeeksAndChangesSpeedFromTheKeys) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  TempDir dir;
+  const fs::path file = dir.path() / "session.mcap";
+  const CliResult sim = teleopctl(
+      "simulate " + std::string(TELEOP_SOURCE_DIR) +
+      "/examples/scenes/paddles_master_fixture.textproto --duration 20 --out " + file.string());
+  ASSERT_TRUE(sim.exit_code == 0 || sim.exit_code == 3) << sim.out;
+
+  // Started paused: every position below is where a key put it, not where the clock did.
+  const std::string control = tcp(free_port());
+  const std::string report = tcp(free_port());
+  Process replay(TELEOPCTL_PATH,
+                 {"replay", file.string(), "--speed", "1", "--paused", "--hold", "--control",
+                  control, "--report", report, "--master-telemetry", tcp(free_port()),
+                  "--slave-telemetry", tcp(free_port())},
+                 dir.path() / "replay.log");
+  Terminal term(std::string(TELEOPCTL_PATH) + " console --replay --control " + control +
+                " --report " + report);
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  auto at = [&](double position_s, const std::string& state = "paused") {
+    return term.wait_for(
+        [&](const std::string& s) {
+          const auto h = replay_header(s);
+          return h && h->state == state && std::abs(h->position_s - position_s) <= 0.05;
+        },
+        screen);
+  };
+  ASSERT_TRUE(at(0.0)) << screen << "--- replay\n" << replay.log();
+  // '.' 5 s on, '>' 30 s on (clamped to the 20 s end), ',' 5 s back, '0' the start.
+  term.key(".");
+  ASSERT_TRUE(at(5.0)) << screen << "--- replay\n" << replay.log();
+  term.key(".");
+  ASSERT_TRUE(at(10.0)) << screen;
+  term.key(",");
+  ASSERT_TRUE(at(5.0)) << screen;
+  term.key("0");
+  ASSERT_TRUE(at(0.0)) << screen;
+  // 'g' and a time: there.
+  term.key("g");
+  ASSERT_TRUE(term.wait_for_text("go to (s)> ", screen)) << screen;
+  term.type("12.5");
+  term.key("Enter");
+  ASSERT_TRUE(at(12.5)) << screen;
+  // ']' doubles the speed, '[' halves it: the header shows the replay's own speed.
+  auto speed_shown = [&](const std::string& speed) {
+    return term.wait_for(
+        [&](const std::string& s) {
+          return lines_of(s).front().find("s  x" + speed + "  ") != std::string::npos;
+        },
+        screen);
+  };
+  term.key("]");
+  ASSERT_TRUE(speed_shown("2")) << screen;
+  term.key("[");
+  term.key("[");
+  ASSERT_TRUE(speed_shown("0.5")) << screen;
+  // Playing from 12.5 s at half speed: the position moves on from there.
+  term.key("Space");
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        const auto h = replay_header(s);
+        return h && h->state == "playing" && h->position_s > 12.6;
+      },
+      screen))
+      << screen;
+  std::cout << screen;
+}
+
+TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  LiveSystem sys;
+  ASSERT_TRUE(sys.up()) << sys.logs();
+  Terminal term(sys.console_command());
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  // The supervisor records from its start (record_dir in the file).
+  const std::regex file_re(R"(^recorder  (teleop-session-\S+\.mcap)  )");
+  auto recording_file = [&](const std::string& s) {
+    std::smatch m;
+    const std::string row = line_starting(s, "recorder  ");
+    return std::regex_search(row, m, file_re) ? std::string(m[1]) : std::string();
+  };
+  ASSERT_TRUE(
+      term.wait_for([&](const std::string& s) { return !recording_file(s).empty(); }, screen))
+      << screen;
+  const std::string first = recording_file(screen);
+
+  // r: stopped, and the screen says so and offers a new one.
+  term.key("r");
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        return s.find("recording stopped") != std::string::npos &&
+               line_starting(s, "recorder  ").rfind("recorder  off (r starts one in ", 0) == 0;
+      },
+      screen))
+      << screen << sys.logs();
+  // r again: a new file, named on screen; r once more closes it.
+  term.key("r");
+  ASSERT_TRUE(term.wait_for(
+      [&](const std::string& s) {
+        const std::string f = recording_file(s);
+        return !f.empty() && f != first && s.find("recording to ") != std::string::npos;
+      },
+      screen))
+      << screen << sys.logs();
+  const std::string second = recording_file(screen);
+  // Let it hold some telemetry (the recorder line counts messages), then stop.
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        std::smatch m;
+        const std::string row = line_starting(s, "recorder  ");
+        return std::regex_search(row, m, std::regex(R"(  (\d+) msgs)")) && std::stoi(m[1]) > 100;
+      },
+      screen))
+      << screen;
+  term.key("r");
+  ASSERT_TRUE(term.wait_for(
+      [](const std::string& s) {
+        return line_starting(s, "recorder  ").rfind("recorder  off", 0) == 0;
+      },
+      screen))
+      << screen;
+  std::cout << screen;
+  // Both files are whole MCAP files with the nodes' telemetry: teleopctl replay reads each
+  // (it refuses a file without its summary and closing magic).
+  const fs::path sessions = sys.config().parent_path() / "sessions";
+  for (const std::string& f : {first, second}) {
+    const CliResult r = teleopctl("replay " + (sessions / f).string() + " --json", false);
+    ASSERT_EQ(r.exit_code, 0) << f << ": " << r.out;
+    const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << r.out;
+    EXPECT_NE(r.out.find("/master/telemetry"), std::string::npos) << f << ": " << r.out;
+  }
+}
+
 TEST(Console, WithoutATerminalExitsOneNamingTeleopctlStatus) {
   // stdin from /dev/null and stdout a pipe: no terminal.
   const CliResult r = teleopctl("console < /dev/null");

@@ -695,6 +695,17 @@ TEST(Replay, SpeedRepublishesInOrderAndObeysPauseAndSeek) {
   EXPECT_FALSE(receive(sub, 0ms).has_value());
   EXPECT_EQ(ask("jump").rfind("error: unknown request 'jump'", 0), 0U);
   EXPECT_NE(ask("speed 20").find("speed 20;"), std::string::npos);
+  // Relative requests (what the console's keys send): a factor on the speed in force, and a
+  // seek from the position in force, clamped to the file's 0..10 s.
+  EXPECT_NE(ask("speed x0.5").find("speed 10;"), std::string::npos);
+  EXPECT_NE(ask("speed x0.5").find("speed 5;"), std::string::npos);
+  EXPECT_NE(ask("speed x4").find("speed 20;"), std::string::npos);
+  EXPECT_EQ(ask("speed x0").rfind("error: speed: must be positive", 0), 0U);
+  EXPECT_EQ(parse_status(ask("seek 3")).position_s, 3.0);
+  EXPECT_EQ(parse_status(ask("seek +2")).position_s, 5.0);
+  EXPECT_EQ(parse_status(ask("seek -1.5")).position_s, 3.5);
+  EXPECT_EQ(parse_status(ask("seek -30")).position_s, 0.0);
+  EXPECT_EQ(parse_status(ask("seek +30")).position_s, 10.0);
 
   // Seek to 6 s: playback continues with the first message logged at or after 6 s.
   Status seek = parse_status(ask("seek 6"));
