@@ -520,27 +520,45 @@ std::optional<ReplayHeader> replay_header(const std::string& screen) {
   return ReplayHeader{m[1], std::stod(m[2]), std::stod(m[3])};
 }
 
+// 20 s of the master-side fixture scene (long enough to play through a test at x1), replayed
+// with `teleopctl replay --speed 1 --hold` on free ports, and the console watching it in a
+// terminal. Asserts on the way: call start() through ASSERT_NO_FATAL_FAILURE.
+class ReplayedScene {
+ public:
+  void start(bool paused) {
+    const CliResult sim = teleopctl(
+        "simulate " + std::string(TELEOP_SOURCE_DIR) +
+        "/examples/scenes/paddles_master_fixture.textproto --duration 20 --out " + file_.string());
+    ASSERT_TRUE(sim.exit_code == 0 || sim.exit_code == 3) << sim.out;
+    ASSERT_TRUE(fs::exists(file_)) << sim.out;
+    const std::string control = tcp(free_port());
+    const std::string report = tcp(free_port());
+    std::vector<std::string> args = {
+        "replay",        file_.string(),       "--speed",        "1",
+        "--hold",        "--control",          control,          "--report",
+        report,          "--master-telemetry", tcp(free_port()), "--slave-telemetry",
+        tcp(free_port())};
+    if (paused) args.emplace_back("--paused");
+    replay_ = std::make_unique<Process>(TELEOPCTL_PATH, args, dir_.path() / "replay.log");
+    term_.emplace(std::string(TELEOPCTL_PATH) + " console --replay --control " + control +
+                  " --report " + report);
+    ASSERT_TRUE(term_->started()) << term_->start_output();
+  }
+  [[nodiscard]] Terminal& term() { return *term_; }
+  [[nodiscard]] std::string log() const { return replay_ ? replay_->log() : std::string(); }
+
+ private:
+  TempDir dir_{};
+  fs::path file_{dir_.path() / "session.mcap"};
+  std::unique_ptr<Process> replay_{};
+  std::optional<Terminal> term_{};
+};
+
 TEST(Console, ReplayCanBePausedAndResumed) {
   ASSERT_TRUE(have_tmux()) << kNoTmux;
-  TempDir dir;
-  // 20 s of the master-side fixture scene: long enough to play through the whole test at x1.
-  const fs::path file = dir.path() / "session.mcap";
-  const CliResult sim = teleopctl(
-      "simulate " + std::string(TELEOP_SOURCE_DIR) +
-      "/examples/scenes/paddles_master_fixture.textproto --duration 20 --out " + file.string());
-  ASSERT_TRUE(sim.exit_code == 0 || sim.exit_code == 3) << sim.out;
-  ASSERT_TRUE(fs::exists(file)) << sim.out;
-
-  const std::string control = tcp(free_port());
-  const std::string report = tcp(free_port());
-  Process replay(
-      TELEOPCTL_PATH,
-      {"replay", file.string(), "--speed", "1", "--hold", "--control", control, "--report", report,
-       "--master-telemetry", tcp(free_port()), "--slave-telemetry", tcp(free_port())},
-      dir.path() / "replay.log");
-  Terminal term(std::string(TELEOPCTL_PATH) + " console --replay --control " + control +
-                " --report " + report);
-  ASSERT_TRUE(term.started()) << term.start_output();
+  ReplayedScene scene;
+  ASSERT_NO_FATAL_FAILURE(scene.start(false));
+  Terminal& term = scene.term();
   std::string screen;
   ASSERT_TRUE(term.wait_for(
       [](const std::string& s) {
@@ -550,7 +568,7 @@ TEST(Console, ReplayCanBePausedAndResumed) {
       screen))
       << "no 'playing' in the header (does the replay publish the \"status\" summary?)\n"
       << screen << "--- replay\n"
-      << replay.log();
+      << scene.log();
   std::cout << screen;
   EXPECT_NE(lines_of(screen).front().find("session.mcap"), std::string::npos) << screen;
   EXPECT_NEAR(replay_header(screen)->duration_s, 20.0, 0.1) << screen;
@@ -564,7 +582,7 @@ TEST(Console, ReplayCanBePausedAndResumed) {
       },
       screen))
       << screen << "--- replay\n"
-      << replay.log();
+      << scene.log();
   std::cout << screen;
   const double paused_at = replay_header(screen)->position_s;
   std::this_thread::sleep_for(500ms);
@@ -584,30 +602,16 @@ TEST(Console, ReplayCanBePausedAndResumed) {
       screen))
       << "paused at " << paused_at << "\n"
       << screen << "--- replay\n"
-      << replay.log();
+      << scene.log();
   std::cout << screen;
 }
 
 TEST(Console, ReplaySeeksAndChangesSpeedFromTheKeys) {
   ASSERT_TRUE(have_tmux()) << kNoTmux;
-  TempDir dir;
-  const fs::path file = dir.path() / "session.mcap";
-  const CliResult sim = teleopctl(
-      "simulate " + std::string(TELEOP_SOURCE_DIR) +
-      "/examples/scenes/paddles_master_fixture.textproto --duration 20 --out " + file.string());
-  ASSERT_TRUE(sim.exit_code == 0 || sim.exit_code == 3) << sim.out;
-
   // Started paused: every position below is where a key put it, not where the clock did.
-  const std::string control = tcp(free_port());
-  const std::string report = tcp(free_port());
-  Process replay(TELEOPCTL_PATH,
-                 {"replay", file.string(), "--speed", "1", "--paused", "--hold", "--control",
-                  control, "--report", report, "--master-telemetry", tcp(free_port()),
-                  "--slave-telemetry", tcp(free_port())},
-                 dir.path() / "replay.log");
-  Terminal term(std::string(TELEOPCTL_PATH) + " console --replay --control " + control +
-                " --report " + report);
-  ASSERT_TRUE(term.started()) << term.start_output();
+  ReplayedScene scene;
+  ASSERT_NO_FATAL_FAILURE(scene.start(true));
+  Terminal& term = scene.term();
   std::string screen;
   auto at = [&](double position_s, const std::string& state = "paused") {
     return term.wait_for(
@@ -617,10 +621,10 @@ TEST(Console, ReplaySeeksAndChangesSpeedFromTheKeys) {
         },
         screen);
   };
-  ASSERT_TRUE(at(0.0)) << screen << "--- replay\n" << replay.log();
+  ASSERT_TRUE(at(0.0)) << screen << "--- replay\n" << scene.log();
   // '.' 5 s on, '>' 30 s on (clamped to the 20 s end), ',' 5 s back, '0' the start.
   term.key(".");
-  ASSERT_TRUE(at(5.0)) << screen << "--- replay\n" << replay.log();
+  ASSERT_TRUE(at(5.0)) << screen << "--- replay\n" << scene.log();
   term.key(".");
   ASSERT_TRUE(at(10.0)) << screen;
   term.key(",");
