@@ -520,12 +520,24 @@ std::optional<ReplayHeader> replay_header(const std::string& screen) {
   return ReplayHeader{m[1], std::stod(m[2]), std::stod(m[3])};
 }
 
+// Polls the terminal until its replay header satisfies `pred`.
+bool wait_for_header(const Terminal& term, std::string& screen,
+                     const std::function<bool(const ReplayHeader&)>& pred) {
+  return term.wait_for(
+      [&](const std::string& s) {
+        const auto h = replay_header(s);
+        return h && pred(*h);
+      },
+      screen);
+}
+
 // 20 s of the master-side fixture scene (long enough to play through a test at x1), replayed
 // with `teleopctl replay --speed 1 --hold` on free ports, and the console watching it in a
 // terminal. Asserts on the way: call start() through ASSERT_NO_FATAL_FAILURE.
 class ReplayedScene {
  public:
   void start(bool paused) {
+    ASSERT_TRUE(have_tmux()) << kNoTmux;
     const CliResult sim = teleopctl(
         "simulate " + std::string(TELEOP_SOURCE_DIR) +
         "/examples/scenes/paddles_master_fixture.textproto --duration 20 --out " + file_.string());
@@ -555,17 +567,12 @@ class ReplayedScene {
 };
 
 TEST(Console, ReplayCanBePausedAndResumed) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   ReplayedScene scene;
   ASSERT_NO_FATAL_FAILURE(scene.start(false));
   Terminal& term = scene.term();
   std::string screen;
-  ASSERT_TRUE(term.wait_for(
-      [](const std::string& s) {
-        const auto h = replay_header(s);
-        return h && h->state == "playing";
-      },
-      screen))
+  ASSERT_TRUE(
+      wait_for_header(term, screen, [](const ReplayHeader& h) { return h.state == "playing"; }))
       << "no 'playing' in the header (does the replay publish the \"status\" summary?)\n"
       << screen << "--- replay\n"
       << scene.log();
@@ -575,12 +582,8 @@ TEST(Console, ReplayCanBePausedAndResumed) {
 
   // Space: paused, and the position stays where it is.
   term.key("Space");
-  ASSERT_TRUE(term.wait_for(
-      [](const std::string& s) {
-        const auto h = replay_header(s);
-        return h && h->state == "paused";
-      },
-      screen))
+  ASSERT_TRUE(
+      wait_for_header(term, screen, [](const ReplayHeader& h) { return h.state == "paused"; }))
       << screen << "--- replay\n"
       << scene.log();
   std::cout << screen;
@@ -594,12 +597,9 @@ TEST(Console, ReplayCanBePausedAndResumed) {
 
   // Space again: playing, and the position moves on from there.
   term.key("Space");
-  ASSERT_TRUE(term.wait_for(
-      [&](const std::string& s) {
-        const auto h = replay_header(s);
-        return h && h->state == "playing" && h->position_s > paused_at;
-      },
-      screen))
+  ASSERT_TRUE(wait_for_header(
+      term, screen,
+      [&](const ReplayHeader& h) { return h.state == "playing" && h.position_s > paused_at; }))
       << "paused at " << paused_at << "\n"
       << screen << "--- replay\n"
       << scene.log();
@@ -607,19 +607,15 @@ TEST(Console, ReplayCanBePausedAndResumed) {
 }
 
 TEST(Console, ReplaySeeksAndChangesSpeedFromTheKeys) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   // Started paused: every position below is where a key put it, not where the clock did.
   ReplayedScene scene;
   ASSERT_NO_FATAL_FAILURE(scene.start(true));
   Terminal& term = scene.term();
   std::string screen;
   auto at = [&](double position_s, const std::string& state = "paused") {
-    return term.wait_for(
-        [&](const std::string& s) {
-          const auto h = replay_header(s);
-          return h && h->state == state && std::abs(h->position_s - position_s) <= 0.05;
-        },
-        screen);
+    return wait_for_header(term, screen, [&](const ReplayHeader& h) {
+      return h.state == state && std::abs(h.position_s - position_s) <= 0.05;
+    });
   };
   ASSERT_TRUE(at(0.0)) << screen << "--- replay\n" << scene.log();
   // '.' 5 s on, '>' 30 s on (clamped to the 20 s end), ',' 5 s back, '0' the start.
@@ -652,13 +648,9 @@ TEST(Console, ReplaySeeksAndChangesSpeedFromTheKeys) {
   ASSERT_TRUE(speed_shown("0.5")) << screen;
   // Playing from 12.5 s at half speed: the position moves on from there.
   term.key("Space");
-  ASSERT_TRUE(term.wait_for(
-      [](const std::string& s) {
-        const auto h = replay_header(s);
-        return h && h->state == "playing" && h->position_s > 12.6;
-      },
-      screen))
-      << screen;
+  ASSERT_TRUE(wait_for_header(term, screen, [](const ReplayHeader& h) {
+    return h.state == "playing" && h.position_s > 12.6;
+  })) << screen;
   std::cout << screen;
 }
 
