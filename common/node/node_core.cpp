@@ -172,6 +172,8 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
   const bool device_fault = !read.ok() || (sample.flags & device::SampleFlags::kFault) != 0;
   const double velocity_m_per_s = velocity_.step(sample.position_m);
 
+  // The round trip's window moves on even while no echo comes back.
+  round_trip_window_.advance(now.count());
   PeerSample incoming{};
   if (peer_in_.read(incoming)) {
     if (have_peer_ && incoming.state.session_id != peer_.state.session_id) {
@@ -186,7 +188,7 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
                                           std::chrono::nanoseconds(incoming.arrival_ns));
       if (rtt && rtt->count() > 0) {
         round_trip_ns_ = rtt->count();
-        round_trip_hist_.add(*rtt);
+        round_trip_window_.add(now.count(), rtt->count());
       }
     }
   }
@@ -345,8 +347,8 @@ void NodeCore::publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age
     s.cycles = sequence_;
   }
   s.round_trip_ns = round_trip_ns_;
-  s.round_trip_p50_ns = round_trip_hist_.quantile(0.5).count();
-  s.round_trip_p99_ns = round_trip_hist_.quantile(0.99).count();
+  s.round_trip_p50_ns = round_trip_window_.quantile(0.5);
+  s.round_trip_p99_ns = round_trip_window_.quantile(0.99);
   s.peer_restarts = peer_restarts_;
   s.peer_session_id = have_peer_ ? peer_.state.session_id : 0;
   s.peer_age_ns = peer_age_ns;

@@ -33,6 +33,7 @@
 #include "common/rt/latest_value.hpp"
 #include "common/rt/loop_timing.hpp"
 #include "common/rt/spsc_queue.hpp"
+#include "common/rt/windowed_histogram.hpp"
 #include "common/transport/node_state_codec.hpp"
 
 namespace teleop::node {
@@ -190,7 +191,8 @@ class NodeCore {
   std::optional<control::SlaveLaw> slave_law_{};
   control::VelocityEstimator velocity_;
   transport::RoundTripEstimator round_trip_{};
-  rt::LatencyHistogram round_trip_hist_{};
+  // The round trip over the last 9-10 s (what the supervisor's model takes).
+  rt::WindowedHistogram round_trip_window_{};
 
   rt::LatestValue<PeerSample> peer_in_{};
   rt::SpscQueue<Command, 64> commands_in_{};
