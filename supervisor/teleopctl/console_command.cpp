@@ -177,12 +177,32 @@ class Console {
   }
 
   // --- keys ------------------------------------------------------------------------------
+  static constexpr int kCtrlX = 24;
+
   void on_key(int ch) {
+    // The e-stop is one key away in every state of a live console: x on the help screen and
+    // while a change waits for y (either is left first), Ctrl-X while typing (where x is a
+    // letter) and anywhere else.
+    const bool live = !a_.replay;
+    const bool typing = !typing_.empty() || prompting_;
+    if (live && (ch == kCtrlX || (!typing && (ch == 'x' || ch == 'X')))) {
+      if (typing) {
+        typing_.clear();
+        prompting_ = false;
+        view_.prompt.clear();
+        say("typing cancelled for the e-stop");
+      }
+      if (confirming_) say("change cancelled for the e-stop: nothing was applied");
+      confirming_ = false;
+      view_.help = false;
+      estop();
+      return;
+    }
     if (view_.help) {
       view_.help = false;
       return;
     }
-    if (!typing_.empty() || prompting_) {
+    if (typing) {
       on_prompt_key(ch);
       return;
     }
@@ -206,10 +226,6 @@ class Console {
     if (ch == KEY_RESIZE) return;
     if (a_.replay) {
       on_replay_key(ch);
-      return;
-    }
-    if (ch == 'x' || ch == 'X') {
-      estop();
       return;
     }
     const char* kinds = "aedcul";

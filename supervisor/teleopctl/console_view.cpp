@@ -175,8 +175,9 @@ std::vector<std::string> help_lines(bool replay) {
       "Commands go to the supervisor, which forwards them to both nodes; each node's",
       "answer is shown below, and the node rows then show the state they report.",
       "",
-      "  x   E-STOP both nodes: always available, straight to the nodes when the",
-      "      supervisor does not answer. Leaving safe: l clear, a arm, e engage.",
+      "  x   E-STOP both nodes: always available (here too; Ctrl-X while typing),",
+      "      straight to the nodes when the supervisor does not answer.",
+      "      Leaving safe: l clear, a arm, e engage.",
       "  a   arm            e  engage (aligning, then engaged)   d  disengage",
       "  c   clutch         u  unclutch                          l  clear a stop",
       "  s   set gains or a fixture stiffness, e.g. gains.kps=2000 or",
@@ -377,6 +378,8 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
   std::string keys;
   if (view.replay) {
     keys = "space pause/resume  , . seek 5s  < > 30s  [ ] speed  0 start  g go to  ? q quit";
+  } else if (!view.prompt.empty()) {
+    keys = "typing: Enter sends  Esc cancels  Ctrl-X E-STOP";
   } else if (view.read_only) {
     keys = "READ-ONLY  x E-STOP  ? help  q quit";
   } else {

@@ -176,8 +176,14 @@ class LiveSystem {
              return s && s->master_alive() && s->slave_alive();
            });
   }
-  // Armed and engaged through the nodes' own command endpoints.
-  void engage_directly() {
+  // Armed and engaged through the nodes' own command endpoints (cleared first after a stop).
+  void engage_directly(bool clear = false) {
+    if (clear) {
+      for (const int port : {ports_.nodes.master_command, ports_.nodes.slave_command}) {
+        const auto r = send_command(ctx, tcp(port), v1::NodeCommand::CLEAR);
+        ASSERT_TRUE(r.has_value() && r->ok()) << "clear on " << port;
+      }
+    }
     for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
       for (const int port : {ports_.nodes.master_command, ports_.nodes.slave_command}) {
         const auto r = send_command(ctx, tcp(port), kind);
@@ -451,6 +457,45 @@ TEST(Console, EstopDrivesBothNodesSafeAndTheScreenSaysSo) {
   // Independently: the nodes' own telemetry.
   EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
   EXPECT_TRUE(sys.st.wait_for_mode(v1::SAFE)) << sys.logs();
+}
+
+TEST(Console, EstopIsOneKeyAwayOnTheHelpScreenAndWhileTypingAChange) {
+  LiveSystem sys;
+  std::optional<Terminal> term;
+  std::string screen;
+  ASSERT_NO_FATAL_FAILURE(open_console_engaged(sys, term, screen));
+  auto both_safe_after = [&](const std::string& note) {
+    return term->wait_for(
+        [&](const std::string& s) {
+          const std::size_t at = s.find(note);
+          return at != std::string::npos &&
+                 s.find("both nodes confirmed safe", at) != std::string::npos &&
+                 has_line_starting(s, "master SAFE") && has_line_starting(s, "slave  SAFE");
+        },
+        screen);
+  };
+
+  // On the help screen, x is the e-stop (and leaves the help).
+  term->key("?");
+  ASSERT_TRUE(term->wait_for_text("E-STOP both nodes", screen)) << screen;
+  term->key("x");
+  EXPECT_TRUE(both_safe_after("E-STOP: ")) << screen;
+  EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
+  EXPECT_TRUE(sys.st.wait_for_mode(v1::SAFE)) << sys.logs();
+
+  // Engaged again; typing a change, where x is a letter, Ctrl-X is the e-stop.
+  ASSERT_NO_FATAL_FAILURE(sys.engage_directly(true));
+  ASSERT_TRUE(term->wait_for(both_engaged_on_screen, screen)) << screen;
+  term->key("s");
+  ASSERT_TRUE(term->wait_for_text("Ctrl-X E-STOP", screen)) << screen;
+  term->type("gains.kps=1");
+  term->key("C-x");
+  EXPECT_TRUE(both_safe_after("typing cancelled for the e-stop")) << screen;
+  EXPECT_TRUE(sys.mt.wait_for_mode(v1::SAFE)) << sys.logs();
+  EXPECT_TRUE(sys.st.wait_for_mode(v1::SAFE)) << sys.logs();
+  // What was typed never went to the supervisor: no prediction for it.
+  EXPECT_EQ(screen.find("prediction for gains.kps=1"), std::string::npos) << screen;
+  std::cout << screen;
 }
 
 TEST(Console, EstopGoesStraightToTheNodesWhenTheSupervisorIsGone) {

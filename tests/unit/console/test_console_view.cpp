@@ -306,7 +306,14 @@ TEST(ConsoleScreen, ReadOnlyReplayAndHelpScreens) {
   EXPECT_NE(lines.front().find("[read-only]"), std::string::npos);
   EXPECT_EQ(lines.back(), "READ-ONLY  x E-STOP  ? help  q quit");
 
+  // Typing a change: the key line says how to send, cancel and e-stop.
   v.read_only = false;
+  v.prompt = "set (PATH=VALUE ...)> gains.kp_";
+  lines = render_console(v, 24, 80);
+  EXPECT_EQ(lines.back(), "typing: Enter sends  Esc cancels  Ctrl-X E-STOP");
+  EXPECT_EQ(lines[22], "set (PATH=VALUE ...)> gains.kp_");
+  v.prompt.clear();
+
   v.replay = true;
   v1::ReplayPosition* r = v.status->mutable_replay();
   r->set_file("/tmp/x/session.mcap");
