@@ -593,6 +593,12 @@ struct SupervisorApp::Impl {
     s.set_time_ns(now);
     s.set_source("live");
     *s.mutable_report() = report;
+    // The round trip as measured now: the report is re-published only when the model changes
+    // (a whole sample, or the rate), so its own figure is the one of that moment (0 in the one
+    // published at the start). The model's samples are this figure's, rounded up.
+    if (measured_round_trip_ns > 0) {
+      s.mutable_report()->set_measured_round_trip_ns(measured_round_trip_ns);
+    }
     int shown = 0;
     for (const v1::Alarm& a : recent_alarms) {
       if (++shown > 20) break;

@@ -1020,6 +1020,16 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   const double analyzed =
       nlohmann::json::parse(analyze.out)["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
   EXPECT_NEAR(json_limit, analyzed, 1e-3 * analyzed);
+  // The report in a status carries the round trip measured now, the model's basis: set (the
+  // report published at the start had none yet), and the model's samples are it in whole
+  // periods of the model's rate, rounded up, at least the file's one.
+  const auto measured_ns = std::stoll(j["report"].value("measuredRoundTripNs", std::string("0")));
+  EXPECT_GT(measured_ns, 0) << j["report"].dump();
+  const double period_ns = 1e9 / j["report"]["sampleRateHz"].get<double>();
+  EXPECT_EQ(
+      j["report"]["roundTripSamples"].get<int>(),
+      std::max(1, static_cast<int>(std::ceil(static_cast<double>(measured_ns) / period_ns - 1e-9))))
+      << j["report"].dump();
   EXPECT_EQ(j["masterAlive"], true);
   EXPECT_EQ(j["slaveAlive"], true);
   // The node summaries: the mode each node reports, its loop at the configured 1 kHz, the
