@@ -74,6 +74,17 @@ void engage(zmq::context_t& ctx, const Ports& p) {
   }
 }
 
+// Both nodes started and linked (each has accepted a state of the other), then armed and
+// engaged through their command endpoints. Call through ASSERT_NO_FATAL_FAILURE.
+void start_linked_and_engage(Nodes& nodes, zmq::context_t& ctx, const Ports& p,
+                             const TelemetryTap& mt, const TelemetryTap& st) {
+  nodes.start_master();
+  nodes.start_slave();
+  ASSERT_TRUE(mt.wait_for(linked)) << nodes.master()->log();
+  ASSERT_TRUE(st.wait_for(linked)) << nodes.slave()->log();
+  ASSERT_NO_FATAL_FAILURE(engage(ctx, p));
+}
+
 // The first cycle at or after `from` index where pred holds.
 template <typename Pred>
 std::optional<std::size_t> first(const std::vector<v1::CycleRecord>& c, std::size_t from,
@@ -93,11 +104,7 @@ TEST(Nodes, EngagedConstantPushTracksLikeTheLockstepSimulationWithOneSampleRound
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));
-  nodes.start_master();
-  nodes.start_slave();
-  ASSERT_TRUE(mt.wait_for(linked)) << nodes.master()->log();
-  ASSERT_TRUE(st.wait_for(linked)) << nodes.slave()->log();
-  engage(ctx, ports);
+  ASSERT_NO_FATAL_FAILURE(start_linked_and_engage(nodes, ctx, ports, mt, st));
   ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED)) << nodes.master()->log();
   ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << nodes.slave()->log();
   // Three seconds of the scene, as the master's own cycles count them.
@@ -198,11 +205,7 @@ TEST(Nodes, SlaveKilledMastersForceReachesZeroWithinTimeoutPlusRampPlusTwoCycles
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));
-  nodes.start_master();
-  nodes.start_slave();
-  ASSERT_TRUE(mt.wait_for(linked)) << nodes.master()->log();
-  ASSERT_TRUE(st.wait_for(linked));
-  engage(ctx, ports);
+  ASSERT_NO_FATAL_FAILURE(start_linked_and_engage(nodes, ctx, ports, mt, st));
   ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED));
   // Engaged with the human pushing: the master's actuator is working.
   ASSERT_TRUE(mt.wait_for([](const v1::Telemetry& t) {
@@ -289,11 +292,7 @@ TEST(Nodes, EStopToEachNodeDrivesBothSafe) {
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));
-  nodes.start_master();
-  nodes.start_slave();
-  ASSERT_TRUE(mt.wait_for(linked)) << nodes.master()->log();
-  ASSERT_TRUE(st.wait_for(linked));
-  engage(ctx, ports);
+  ASSERT_NO_FATAL_FAILURE(start_linked_and_engage(nodes, ctx, ports, mt, st));
   ASSERT_TRUE(mt.wait_for_mode(v1::ENGAGED));
   ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED));
   // teleopctl node, the operator's path, to each node directly.
@@ -344,11 +343,7 @@ TEST(Nodes, DeviceFaultBitFaultsTheNodeAtOnceLatchedAndTheMasterGoesSafeOverTheL
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));
-  nodes.start_master();
-  nodes.start_slave();
-  ASSERT_TRUE(mt.wait_for(linked)) << nodes.master()->log();
-  ASSERT_TRUE(st.wait_for(linked)) << nodes.slave()->log();
-  engage(ctx, ports);
+  ASSERT_NO_FATAL_FAILURE(start_linked_and_engage(nodes, ctx, ports, mt, st));
   ASSERT_TRUE(st.wait_for_mode(v1::FAULT, 10s)) << nodes.slave()->log();
   ASSERT_TRUE(mt.wait_for_mode(v1::SAFE, 5s)) << nodes.master()->log();
   // Past the release: 700 more slave cycles (to 1.7 s and beyond on the scene's clock).
