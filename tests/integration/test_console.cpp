@@ -274,30 +274,39 @@ bool both_engaged_on_screen(const std::string& s) {
   return has_line_starting(s, "master ENGAGED") && has_line_starting(s, "slave  ENGAGED");
 }
 
-// Where the stiffness and e-stop tests start: both nodes engaged directly (not from the
-// console), then the console in a terminal showing both engaged; `screen` is the screen last
-// seen. Asserts on the way: call it through ASSERT_NO_FATAL_FAILURE.
-void open_console_engaged(LiveSystem& sys, std::optional<Terminal>& term, std::string& screen,
-                          const std::string& flags = "") {
+// The console in an 80x24 terminal over the running system; with `engaged`, both nodes are
+// engaged directly first (not from the console) and the screen shows both engaged. `screen`
+// is the screen last seen. Asserts on the way: call it through ASSERT_NO_FATAL_FAILURE.
+void open_console(LiveSystem& sys, std::optional<Terminal>& term, std::string& screen, bool engaged,
+                  const std::string& flags = "") {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
   ASSERT_TRUE(sys.up()) << sys.logs();
-  sys.engage_directly();
-  if (::testing::Test::HasFatalFailure()) return;
+  if (engaged) {
+    sys.engage_directly();
+    if (::testing::Test::HasFatalFailure()) return;
+  }
   term.emplace(sys.console_command(flags));
   ASSERT_TRUE(term->started()) << term->start_output();
-  ASSERT_TRUE(term->wait_for(both_engaged_on_screen, screen)) << screen;
+  if (engaged) {
+    ASSERT_TRUE(term->wait_for(both_engaged_on_screen, screen)) << screen;
+  }
+}
+
+// Where the stiffness and e-stop tests start.
+void open_console_engaged(LiveSystem& sys, std::optional<Terminal>& term, std::string& screen,
+                          const std::string& flags = "") {
+  open_console(sys, term, screen, true, flags);
 }
 
 // --- tests -------------------------------------------------------------------------------
 
 TEST(Console, ConsoleShowsBothNodesEngaged) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
-  ASSERT_TRUE(sys.up()) << sys.logs();
-  Terminal term(sys.console_command());
-  ASSERT_TRUE(term.started()) << term.start_output();
+  std::optional<Terminal> term;
   std::string screen;
+  ASSERT_NO_FATAL_FAILURE(open_console(sys, term, screen, false));
   // The console's first screens: the summary arriving, both nodes disarmed.
-  ASSERT_TRUE(term.wait_for(
+  ASSERT_TRUE(term->wait_for(
       [](const std::string& s) {
         return has_line_starting(s, "TELEOP CONSOLE  live ") &&
                s.find("WAITING FOR THE SUMMARY") == std::string::npos &&
@@ -308,13 +317,13 @@ TEST(Console, ConsoleShowsBothNodesEngaged) {
   EXPECT_NE(screen.find("[read-write]"), std::string::npos) << screen;
 
   // Engaged from the console's own keys: a arm, e engage (through the supervisor).
-  term.key("a");
-  ASSERT_TRUE(sys.mt.wait_for_mode(v1::ARMED)) << term.screen() << sys.logs();
-  ASSERT_TRUE(sys.st.wait_for_mode(v1::ARMED)) << term.screen() << sys.logs();
-  term.key("e");
-  ASSERT_TRUE(sys.mt.wait_for_mode(v1::ENGAGED)) << term.screen() << sys.logs();
-  ASSERT_TRUE(sys.st.wait_for_mode(v1::ENGAGED)) << term.screen() << sys.logs();
-  ASSERT_TRUE(term.wait_for(both_engaged_on_screen, screen)) << screen;
+  term->key("a");
+  ASSERT_TRUE(sys.mt.wait_for_mode(v1::ARMED)) << term->screen() << sys.logs();
+  ASSERT_TRUE(sys.st.wait_for_mode(v1::ARMED)) << term->screen() << sys.logs();
+  term->key("e");
+  ASSERT_TRUE(sys.mt.wait_for_mode(v1::ENGAGED)) << term->screen() << sys.logs();
+  ASSERT_TRUE(sys.st.wait_for_mode(v1::ENGAGED)) << term->screen() << sys.logs();
+  ASSERT_TRUE(term->wait_for(both_engaged_on_screen, screen)) << screen;
   std::cout << screen;
 
   // The fixture row: the configured stiffness and the analysed limit for the supervisor's
@@ -322,7 +331,7 @@ TEST(Console, ConsoleShowsBothNodesEngaged) {
   std::map<int, double> limits;
   std::string expected;
   std::string why;
-  const bool shown = term.wait_for(
+  const bool shown = term->wait_for(
       [&](const std::string& s) {
         const auto m = sys.model();
         if (!m) {
@@ -360,7 +369,6 @@ TEST(Console, ConsoleShowsBothNodesEngaged) {
 }
 
 TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
   std::optional<Terminal> term;
   std::string screen;
@@ -438,7 +446,6 @@ TEST(Console, UnstableStiffnessIsRefusedOnScreenWithItsReason) {
 }
 
 TEST(Console, EstopDrivesBothNodesSafeAndTheScreenSaysSo) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
   std::optional<Terminal> term;
   std::string screen;
@@ -499,7 +506,6 @@ TEST(Console, EstopIsOneKeyAwayOnTheHelpScreenAndWhileTypingAChange) {
 }
 
 TEST(Console, EstopGoesStraightToTheNodesWhenTheSupervisorIsGone) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
   std::optional<Terminal> term;
   std::string screen;
@@ -523,7 +529,6 @@ TEST(Console, EstopGoesStraightToTheNodesWhenTheSupervisorIsGone) {
 }
 
 TEST(Console, ReadOnlyConsoleChangesNothingButCanEstop) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
   std::optional<Terminal> term;
   std::string screen;
@@ -700,12 +705,10 @@ TEST(Console, ReplaySeeksAndChangesSpeedFromTheKeys) {
 }
 
 TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
-  ASSERT_TRUE(have_tmux()) << kNoTmux;
   LiveSystem sys;
-  ASSERT_TRUE(sys.up()) << sys.logs();
-  Terminal term(sys.console_command());
-  ASSERT_TRUE(term.started()) << term.start_output();
+  std::optional<Terminal> term;
   std::string screen;
+  ASSERT_NO_FATAL_FAILURE(open_console(sys, term, screen, false));
   // The supervisor records from its start (record_dir in the file).
   const std::regex file_re(R"(^recorder  (teleop-session-\S+\.mcap)  )");
   auto recording_file = [&](const std::string& s) {
@@ -714,13 +717,13 @@ TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
     return std::regex_search(row, m, file_re) ? std::string(m[1]) : std::string();
   };
   ASSERT_TRUE(
-      term.wait_for([&](const std::string& s) { return !recording_file(s).empty(); }, screen))
+      term->wait_for([&](const std::string& s) { return !recording_file(s).empty(); }, screen))
       << screen;
   const std::string first = recording_file(screen);
 
   // r: stopped, and the screen says so and offers a new one.
-  term.key("r");
-  ASSERT_TRUE(term.wait_for(
+  term->key("r");
+  ASSERT_TRUE(term->wait_for(
       [](const std::string& s) {
         return s.find("recording stopped") != std::string::npos &&
                line_starting(s, "recorder  ").rfind("recorder  off (r starts one in ", 0) == 0;
@@ -728,8 +731,8 @@ TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
       screen))
       << screen << sys.logs();
   // r again: a new file, named on screen; r once more closes it.
-  term.key("r");
-  ASSERT_TRUE(term.wait_for(
+  term->key("r");
+  ASSERT_TRUE(term->wait_for(
       [&](const std::string& s) {
         const std::string f = recording_file(s);
         return !f.empty() && f != first && s.find("recording to ") != std::string::npos;
@@ -738,7 +741,7 @@ TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
       << screen << sys.logs();
   const std::string second = recording_file(screen);
   // Let it hold some telemetry (the recorder line counts messages), then stop.
-  ASSERT_TRUE(term.wait_for(
+  ASSERT_TRUE(term->wait_for(
       [](const std::string& s) {
         std::smatch m;
         const std::string row = line_starting(s, "recorder  ");
@@ -746,8 +749,8 @@ TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
       },
       screen))
       << screen;
-  term.key("r");
-  ASSERT_TRUE(term.wait_for(
+  term->key("r");
+  ASSERT_TRUE(term->wait_for(
       [](const std::string& s) {
         return line_starting(s, "recorder  ").rfind("recorder  off", 0) == 0;
       },
