@@ -45,15 +45,13 @@ std::string wall_clock() {
 struct ConsoleArgs {
   std::string config_path{};
   std::string report{"tcp://127.0.0.1:5566"};
-  std::string request{"tcp://127.0.0.1:5567"};
+  // --supervisor (the request endpoint), --key, --server-key, --timeout-ms: as for status/set.
+  SupervisorClientFlags sup{};
   std::string control{"tcp://127.0.0.1:5568"};
-  std::string key{};
-  std::string server_key{};
   bool read_only{false};
   bool replay{false};
   double refresh_hz{10.0};
   bool report_set{false};
-  bool request_set{false};
 };
 
 // Restores the terminal whatever happens.
@@ -91,8 +89,9 @@ class Console {
     sub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::rcvhwm, 100);
     transport::LinkSecurity sec;
-    if (!a_.key.empty()) sec.own = transport::load_secret_key_file(a_.key);
-    if (!a_.server_key.empty()) sec.server_public_key = transport::load_public_key(a_.server_key);
+    if (!a_.sup.key.empty()) sec.own = transport::load_secret_key_file(a_.sup.key);
+    if (!a_.sup.server_key.empty())
+      sec.server_public_key = transport::load_public_key(a_.sup.server_key);
     (void)transport::apply_link_security(ctx, sub, a_.report, transport::LinkRole::kClient, sec);
     sub.set(zmq::sockopt::subscribe, "status");
     sub.connect(a_.report);
@@ -104,7 +103,7 @@ class Console {
         if (!r->status().client_may_command()) view_.read_only = true;
         accept(r->status());
       } else {
-        say("the supervisor at " + a_.request + " did not answer; waiting for its summary");
+        say("the supervisor at " + a_.sup.endpoint + " did not answer; waiting for its summary");
       }
     }
     Screen screen;
@@ -167,9 +166,15 @@ class Console {
     refresh();
   }
 
+  // One request to the supervisor, bounded by `timeout_ms` (each request's own default) or by
+  // --timeout-ms when given; an e-stop waits at most 1 s before going to the nodes directly.
   std::optional<v1::SupervisorReply> request(const v1::SupervisorRequest& req, int timeout_ms) {
+    if (a_.sup.timeout_given) timeout_ms = a_.sup.timeout_ms;
+    if (req.has_node_command() && req.node_command().kind() == v1::NodeCommand::ESTOP) {
+      timeout_ms = std::min(timeout_ms, 1000);
+    }
     try {
-      return supervisor_request(a_.request, req, timeout_ms, a_.key, a_.server_key);
+      return supervisor_request(a_.sup.endpoint, req, timeout_ms, a_.sup.key, a_.sup.server_key);
     } catch (const std::exception& e) {
       say(std::string("request failed: ") + e.what());
       return std::nullopt;
@@ -321,7 +326,7 @@ class Console {
     const auto r = request(req, 3000);
     const std::string name = v1::NodeCommand::Kind_Name(kind);
     if (!r) {
-      say(name + ": NO REPLY from the supervisor at " + a_.request);
+      say(name + ": NO REPLY from the supervisor at " + a_.sup.endpoint);
     } else if (!r->error().empty()) {
       say(name + ": " + r->error());
     } else {
@@ -389,7 +394,7 @@ class Console {
     *req.mutable_change() = make_change_request(settings_, gains, dry_run, "console");
     const auto r = request(req, 5000);
     if (!r) {
-      say("set " + pending_text_ + ": NO REPLY from the supervisor at " + a_.request);
+      say("set " + pending_text_ + ": NO REPLY from the supervisor at " + a_.sup.endpoint);
       return;
     }
     if (!r->error().empty()) {
@@ -536,7 +541,7 @@ class Console {
 std::string console_usage() {
   return "usage: teleopctl console [CONFIG] [--supervisor HOST:PORT] [--report HOST:PORT]\n"
          "                         [--key FILE] [--server-key KEY|FILE] [--read-only]\n"
-         "                         [--refresh-hz N]\n"
+         "                         [--timeout-ms N] [--refresh-hz N]\n"
          "       teleopctl console --replay [--control HOST:PORT] [--report HOST:PORT]\n\n"
          "The operator's full-screen console (80x24 or larger, no colour needed). It draws from\n"
          "the supervisor's summary stream (topic \"status\" on its report endpoint, default\n"
@@ -549,7 +554,8 @@ std::string console_usage() {
          ".supervisor_public_key); --key is this console's key file (teleopctl keygen), whose\n"
          "public key the supervisor must list in security.client_public_keys, or in\n"
          "security.read_only_client_public_keys for a console that may only watch and e-stop.\n"
-         "--read-only makes this console read-only whatever its key.\n"
+         "--read-only makes this console read-only whatever its key. --timeout-ms bounds\n"
+         "each request to the supervisor (an e-stop's at most 1 s, then the nodes directly).\n"
          "--replay watches `teleopctl replay FILE --speed X` (control default 127.0.0.1:5568):\n"
          "space pause/resume, , . seek 5 s, < > 30 s, [ ] speed, 0 start, g go to.\n"
          "Without a terminal use teleopctl status, set and estop.\n";
@@ -561,18 +567,12 @@ int run_console(const std::vector<std::string>& args, std::ostream& out, std::os
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& arg = cur.arg();
-    if (arg == "--supervisor") {
-      a.request = to_endpoint(cur.value("--supervisor"));
-      a.request_set = true;
-    } else if (arg == "--report") {
+    if (a.sup.take(cur)) continue;
+    if (arg == "--report") {
       a.report = to_endpoint(cur.value("--report"));
       a.report_set = true;
     } else if (arg == "--control") {
       a.control = to_endpoint(cur.value("--control"));
-    } else if (arg == "--key") {
-      a.key = cur.value("--key");
-    } else if (arg == "--server-key") {
-      a.server_key = cur.value("--server-key");
     } else if (arg == "--read-only") {
       a.read_only = true;
     } else if (arg == "--replay") {
@@ -599,13 +599,17 @@ int run_console(const std::vector<std::string>& args, std::ostream& out, std::os
       const config::LoadedConfig c = config::load_config_file(a.config_path);
       const v1::Supervisor& s = c.config.supervisor();
       if (!a.report_set && !s.report_endpoint().empty()) a.report = s.report_endpoint();
-      if (!a.request_set && !s.request_endpoint().empty()) a.request = s.request_endpoint();
-      if (a.server_key.empty()) a.server_key = c.config.security().supervisor_public_key();
+      if (!a.sup.endpoint_given && !s.request_endpoint().empty()) {
+        a.sup.endpoint = s.request_endpoint();
+      }
+      if (a.sup.server_key.empty()) {
+        a.sup.server_key = c.config.security().supervisor_public_key();
+      }
       master_command = config::to_node_setup(c, transport::Role::kMaster).endpoints.command;
       slave_command = config::to_node_setup(c, transport::Role::kSlave).endpoints.command;
-      if (!a.key.empty()) {
-        master_keys = {a.key, c.config.security().master_public_key()};
-        slave_keys = {a.key, c.config.security().slave_public_key()};
+      if (!a.sup.key.empty()) {
+        master_keys = {a.sup.key, c.config.security().master_public_key()};
+        slave_keys = {a.sup.key, c.config.security().slave_public_key()};
       }
     }
     if (isatty(STDIN_FILENO) == 0 || isatty(STDOUT_FILENO) == 0) {

@@ -34,12 +34,14 @@ bool SupervisorClientFlags::take(ArgCursor& cur) {
   const std::string& a = cur.arg();
   if (a == "--supervisor") {
     endpoint = to_endpoint(cur.value("--supervisor"));
+    endpoint_given = true;
   } else if (a == "--key") {
     key = cur.value("--key");
   } else if (a == "--server-key") {
     server_key = cur.value("--server-key");
   } else if (a == "--timeout-ms") {
     timeout_ms = parse_timeout_ms(cur.value("--timeout-ms"));
+    timeout_given = true;
   } else {
     return false;
   }

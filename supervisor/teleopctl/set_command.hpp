@@ -31,6 +31,8 @@ struct SupervisorClientFlags {
   std::string key{};
   std::string server_key{};
   int timeout_ms{2000};
+  bool endpoint_given{false};  // --supervisor was on the command line
+  bool timeout_given{false};   // --timeout-ms was on the command line
   // Takes the cursor's current flag (and its value) if it is one of these; false otherwise.
   bool take(ArgCursor& cur);
 };

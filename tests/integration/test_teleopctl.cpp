@@ -198,8 +198,9 @@ TEST(TeleopctlSimulate, BadSceneNamesTheField) {
 // A timeout of 0 or less would mean "never wait" or "wait for ever" to ZeroMQ: every client of
 // the supervisor and the nodes refuses it as a usage error (exit 2) naming the range.
 TEST(TeleopctlClients, TimeoutOutsideOneToSixtyThousandMsIsAUsageError) {
-  for (const char* cmd : {"status --timeout-ms 0", "set gains.kps=1 --timeout-ms -5",
-                          "estop --timeout-ms 0", "node 127.0.0.1:1 status --timeout-ms 70000"}) {
+  for (const char* cmd :
+       {"status --timeout-ms 0", "set gains.kps=1 --timeout-ms -5", "estop --timeout-ms 0",
+        "node 127.0.0.1:1 status --timeout-ms 70000", "console --timeout-ms 0 < /dev/null"}) {
     const CliResult r = teleopctl(cmd);
     EXPECT_EQ(r.exit_code, 2) << cmd << "\n" << r.out;
     EXPECT_NE(r.out.find("--timeout-ms must be in [1, 60000]"), std::string::npos) << r.out;
