@@ -34,12 +34,11 @@ inline CliResult run(const std::string& cmd, bool merge_stderr = true) {
   return capture(cmd + (merge_stderr ? " 2>&1" : " 2>/dev/null"));
 }
 
-#ifdef TELEOPCTL_PATH
-// teleopctl with `args` (a shell command line's arguments), as run() runs it.
+// teleopctl with `args` (a shell command line's arguments), as run() runs it (every
+// integration binary has TELEOPCTL_PATH: teleop_live_test() in CMakeLists.txt).
 inline CliResult teleopctl(const std::string& args, bool merge_stderr = true) {
   return run(std::string(TELEOPCTL_PATH) + " " + args, merge_stderr);
 }
-#endif
 
 // A number as text that parses back to the same double.
 inline std::string exact(double v) {
