@@ -3,9 +3,12 @@
 #   ./scripts/campaign.sh            the full campaign (about 20 minutes: 10-minute soak)
 #   ./scripts/campaign.sh --short    the CI version (a few minutes)
 # Environment: SOAK_S (soak seconds), FUZZ_S (seconds per fuzz target), CASES (analyser cases),
-# PARTS (a subset of: analyser faults fuzz soak).
+# PARTS (a subset of: analyser faults hostile fuzz soak).
 # Parts: the analyser against the 50-digit reference; the live fault table (relay faults, CPU
-# load, kills and restarts, disk full, e-stop); fuzzing of every outside-input parser; a soak
+# load, kills and restarts, disk full, e-stop); the hostile and mistaken inputs of issue 14
+# against the real processes (every Hostile* test: absurd parameters, unauthorised retunes,
+# inconsistent or unstable configurations, raw ZMTP bytes, subscription floods, stalls, e-stop
+# with a node or the supervisor gone, two instances on one host); fuzzing of every outside-input parser; a soak
 # of the simulated system with recording. Exit status non-zero when any part fails.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -17,8 +20,8 @@ else
   : "${SOAK_S:=600}" "${FUZZ_S:=120}" "${CASES:=5000}"
 fi
 report=()
-# PARTS: which parts to run, from analyser faults fuzz soak (default: all).
-: "${PARTS:=analyser faults fuzz soak}"
+# PARTS: which parts to run, from analyser faults hostile fuzz soak (default: all).
+: "${PARTS:=analyser faults hostile fuzz soak}"
 want() { [[ " $PARTS " == *" $1 "* ]]; }
 failed=0
 note() { report+=("$1"); }
@@ -51,6 +54,22 @@ if (cd build && ctest -R "$faults" --verbose 2>&1 | tee /tmp/teleop-campaign-fau
   grep -q "100% tests passed" /tmp/teleop-campaign-faults.txt || failed=1
 else
   note "faults: FAILED"
+  failed=1
+fi
+
+fi
+if want hostile; then
+part "hostile and mistaken input against the real processes (Hostile* tests)"
+# Each test prints its figures on lines starting "hostile:" (inputs tried, crashes, unapproved
+# changes applied, e-stop latency).
+if (cd build && ctest -R '^Hostile' --verbose 2>&1 | tee /tmp/teleop-campaign-hostile.txt |
+    grep -E "Test +#|tests passed|hostile: "); then
+  note "hostile: $(grep -E 'tests passed' /tmp/teleop-campaign-hostile.txt)"
+  while IFS= read -r line; do note "  ${line#*hostile: }"; done \
+    < <(grep -Eo 'hostile: .*' /tmp/teleop-campaign-hostile.txt | sort -u)
+  grep -q "100% tests passed" /tmp/teleop-campaign-hostile.txt || failed=1
+else
+  note "hostile: FAILED"
   failed=1
 fi
 
