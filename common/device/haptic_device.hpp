@@ -77,10 +77,15 @@ class HapticDevice {
   // here (the lockstep order: read, law, write, step); a real device has nothing to do.
   // RT-safe.
   virtual Status tick(std::chrono::nanoseconds /*period*/) noexcept { return Status::Ok(); }
-  // The operator engaged the teleoperator for the first time: a simulated device starts its
-  // scene (the human's push, a malicious user's schedule) here; a real device ignores it.
-  // RT-safe.
+  // The node became engaged (from aligning: the first time, or again after a safe or a
+  // disengage): a simulated device starts its scene (the human's push, a malicious user's
+  // schedule) the first time, and its operator takes the scene's push up again later ones; a
+  // real device ignores it. RT-safe.
   virtual void on_engaged() noexcept {}
+  // The coupling ended (engaged or clutched -> aligning, armed, safe, fault): a simulated
+  // operator stops following the scene and cooperates with the guidance (sim_device.hpp); a
+  // real device ignores it. RT-safe.
+  virtual void on_disengaged() noexcept {}
 };
 
 enum class DeviceKind { kSim, kUsb };

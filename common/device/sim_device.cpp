@@ -51,6 +51,12 @@ Status SimDevice::configure() {
   command_ = {};
   command_rejected_ = false;
   applied_force_N_ = 0.0;
+  last_push_N_ = 0.0;
+  cooperating_ = false;
+  held_push_N_ = 0.0;
+  rejoining_ = false;
+  rejoin_start_s_ = 0.0;
+  rejoin_offset_N_ = 0.0;
   sample_ = {};
   stage_ = Stage::kInactive;
   take_sample(0);
@@ -115,8 +121,21 @@ Status SimDevice::advance(std::chrono::nanoseconds period) noexcept {
     // Unreachable with a validated configuration; never let it escape the RT path.
     return {StatusCode::kFault, "sim device: propagator rebuild failed"};
   }
-  const sim::PeriodForce exogenous =
+  sim::PeriodForce exogenous =
       human_ && scene_running ? human_->exogenous(t0_s, period_s) : sim::PeriodForce{};
+  if (human_ && cooperating_) {
+    exogenous = sim::PeriodForce{held_push_N_, 0.0};
+  } else if (human_ && rejoining_) {
+    const double rejoin_s = config_.operator_rejoin_s;
+    const double w = rejoin_s > 0.0 ? 1.0 - (t0_s - rejoin_start_s_) / rejoin_s : 0.0;
+    if (w > 0.0) {
+      exogenous.force_N += w * rejoin_offset_N_;
+      exogenous.slope_N_per_s -= rejoin_offset_N_ / rejoin_s;
+    } else {
+      rejoining_ = false;
+    }
+  }
+  last_push_N_ = exogenous.force_N;
   // The scheduled e-stop press (scene time), on top of the button set_estop() holds.
   const bool scheduled_estop = scene_running && config_.estop_press_at_s &&
                                t0_s >= *config_.estop_press_at_s &&
@@ -125,6 +144,8 @@ Status SimDevice::advance(std::chrono::nanoseconds period) noexcept {
   const bool driving = stage_ == Stage::kActive && !estop;
   applied_force_N_ = driving ? command_.force_N : 0.0;
   plant_->step(applied_force_N_, exogenous.force_N, exogenous.slope_N_per_s);
+  // The cooperating operator yields to the force they felt over this period.
+  if (cooperating_) held_push_N_ += period_s * config_.operator_yield_per_s * applied_force_N_;
   time_ += period;
   std::uint32_t flags = 0;
   if (driving && command_.saturated) flags |= SampleFlags::kAmplifierSaturated;
@@ -158,11 +179,36 @@ SimTruth SimDevice::truth() const noexcept {
   t.applied_force_N = applied_force_N_;
   t.human = current_human_;
   t.malicious_index = malicious_index_;
+  t.human_push_N = last_push_N_;
+  t.operator_cooperating = cooperating_;
   return t;
+}
+
+double SimDevice::scene_time_s() const noexcept {
+  const bool scene_running = !config_.hold_scene_until_engaged || scene_origin_.has_value();
+  if (!scene_running) return 0.0;
+  return std::chrono::duration<double>(time_ - scene_origin_.value_or(std::chrono::nanoseconds{0}))
+      .count();
 }
 
 void SimDevice::on_engaged() noexcept {
   if (!scene_origin_) scene_origin_ = time_;
+  if (!cooperating_) return;
+  // Engaged again: from the push they hold back to the scene's, linearly over rejoin_s.
+  cooperating_ = false;
+  rejoining_ = human_.has_value();
+  rejoin_start_s_ = scene_time_s();
+  const double period_s = std::chrono::duration<double>(config_.period).count();
+  const double scene_N = human_ ? human_->exogenous(rejoin_start_s_, period_s).force_N : 0.0;
+  rejoin_offset_N_ = held_push_N_ - scene_N;
+}
+
+void SimDevice::on_disengaged() noexcept {
+  if (!human_ || cooperating_) return;
+  // The push felt last period is held from now on, and yields to the guidance.
+  cooperating_ = true;
+  rejoining_ = false;
+  held_push_N_ = last_push_N_;
 }
 
 }  // namespace teleop::device

@@ -40,6 +40,19 @@ struct SimDeviceConfig {
   // The e-stop button pressed over [press, release) of scene time (release absent: held).
   std::optional<double> estop_press_at_s{};
   std::optional<double> estop_release_at_s{};
+  // The operator once a coupling has ended (on_disengaged(); only live nodes call it). A real
+  // operator feels the teleoperator let go, and while it aligns follows the guiding force; a
+  // hand's push (1.5 N in the demo) is far above the centring force, which is capped so it can
+  // never overpower a hand (0.5 N), so alignment needs the operator's cooperation. The
+  // simulated operator holds the push F_h* they had and yields to the actuator force F they
+  // feel, moving their set point along it: dF_h*/dt = operator_yield_per_s * F (with the
+  // human's stiffness k_h that is a set point moving at operator_yield_per_s / k_h m/s per N).
+  // No force felt (armed, safe): the push is held. Engaged again (on_engaged()), the push
+  // returns to the scene's profile linearly over operator_rejoin_s. Scene time runs on
+  // meanwhile (a scheduled e-stop keeps its times). operator_yield_per_s = 0: a push held
+  // rigidly (the demo then cannot re-align, as before).
+  double operator_yield_per_s{5.0};
+  double operator_rejoin_s{1.0};
 
   // The paper's master paddle (0.040 kg, 0.41 Ns/m) held by a human.
   [[nodiscard]] static SimDeviceConfig paddle_master(sim::HumanParams human);
@@ -55,6 +68,8 @@ struct SimTruth {
   double applied_force_N{0.0};                   // after the amplifier, over the last period
   HumanImpedance human{};                        // the impedance in effect over the last period
   std::optional<std::size_t> malicious_index{};  // the malicious user's schedule position
+  double human_push_N{0.0};          // F_h* at the start of the last period (0 without a human)
+  bool operator_cooperating{false};  // after a coupling ended, until engaged again
 };
 
 class SimDevice final : public HapticDevice {
@@ -79,6 +94,7 @@ class SimDevice final : public HapticDevice {
   // The node's cycle end: advance(period).
   Status tick(std::chrono::nanoseconds period) noexcept override { return advance(period); }
   void on_engaged() noexcept override;
+  void on_disengaged() noexcept override;
 
   // The simulated e-stop button: while engaged the actuator gives 0 N and samples carry kFault.
   void set_estop(bool engaged) noexcept { estop_ = engaged; }
@@ -108,6 +124,14 @@ class SimDevice final : public HapticDevice {
   double applied_force_N_{0.0};
   HumanImpedance current_human_{};
   std::optional<std::size_t> malicious_index_{};
+  // The operator after a coupling ended (SimDeviceConfig::operator_yield_per_s).
+  [[nodiscard]] double scene_time_s() const noexcept;
+  double last_push_N_{0.0};
+  bool cooperating_{false};
+  double held_push_N_{0.0};
+  bool rejoining_{false};
+  double rejoin_start_s_{0.0};
+  double rejoin_offset_N_{0.0};
   Sample sample_{};
   std::string error_{};
 };

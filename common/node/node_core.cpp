@@ -163,7 +163,34 @@ double NodeCore::slave_command(Mode mode, double position_m, double force_N, boo
 }
 
 void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) noexcept {
+  const std::chrono::nanoseconds clock =
+      timing != nullptr && timing->cycles() > 0 ? timing->last_woke() : now;
+  step(now, clock, timing);
+}
+
+void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock,
+                    const rt::LoopTiming* timing) noexcept {
   ++sequence_;
+  // An own stall: the time since the previous cycle's clock beyond the peer timeout, or a
+  // burst of overruns (lateness beyond one period accumulating faster than half the time
+  // that passes drains it).
+  const char* own_stall = nullptr;
+  if (have_clock_) {
+    const std::int64_t gap_ns = clock.count() - last_clock_ns_;
+    const std::int64_t period_ns = settings_.period.count();
+    const std::int64_t timeout_ns = settings_.machine.peer_timeout.count();
+    overrun_debt_ns_ =
+        std::max<std::int64_t>(0, overrun_debt_ns_ + std::max<std::int64_t>(0, gap_ns - period_ns) -
+                                      std::max<std::int64_t>(0, gap_ns) / 2);
+    if (gap_ns > timeout_ns) {
+      own_stall = "own loop stalled past the peer timeout";
+    } else if (overrun_debt_ns_ > timeout_ns) {
+      own_stall = "own loop overran in a burst";
+    }
+  }
+  if (own_stall != nullptr) overrun_debt_ns_ = 0;
+  have_clock_ = true;
+  last_clock_ns_ = clock.count();
   const bool master = settings_.role == Role::kMaster;
   const double alpha = settings_.law.scaling.position;
 
@@ -192,8 +219,9 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
       }
     }
   }
+  // Against the clock: after a stall the deadline is as old as the stall.
   const std::int64_t peer_age_ns =
-      have_peer_ ? std::max<std::int64_t>(0, now.count() - peer_.arrival_ns) : 0;
+      have_peer_ ? std::max<std::int64_t>(0, clock.count() - peer_.arrival_ns) : 0;
 
   Command command = Command::kNone;
   if (const std::optional<Command> c = commands_in_.try_pop()) {
@@ -220,12 +248,15 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
   in.law_fault = master ? master_law_->faulted() : slave_law_->faulted();
   in.peer_failed = have_peer_ && (peer_down(peer_.state.mode) || peer_restarted_);
   in.peer_disengaged = have_peer_ && !peer_coupling(peer_.state.mode) && !in.peer_failed;
+  in.own_stall = own_stall;
   const CycleOutputs out = machine_.step(in);
   const Mode mode = out.mode;
 
   if (mode != last_mode_) {
-    if (mode == Mode::kAligning || mode == Mode::kEngaged) {
+    const bool unclutched = mode == Mode::kEngaged && last_mode_ == Mode::kClutched;
+    if (mode == Mode::kAligning || (mode == Mode::kEngaged && !unclutched)) {
       // A fresh law at each stage: no offset, no stale filter state, the coupling fading in.
+      // Not on unclutch: the law absorbs the operator's indexing offset (master_law.hpp).
       if (master) {
         master_law_->reset(own_m);
       } else {
@@ -233,12 +264,16 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
       }
     }
     if (mode == Mode::kAligning) peer_restarted_ = false;
-    if (mode == Mode::kEngaged && !scene_started_) {
+    const bool coupled_mode = mode == Mode::kEngaged || mode == Mode::kClutched;
+    const bool was_coupled = last_mode_ == Mode::kEngaged || last_mode_ == Mode::kClutched;
+    if (mode == Mode::kEngaged && !was_coupled) {
+      // The scene starts at the first engagement; the (simulated) operator takes it up again
+      // at each later one.
       device_.on_engaged();
-      scene_started_ = true;
     }
+    if (was_coupled && !coupled_mode) device_.on_disengaged();
     if (mode == Mode::kSafe) {
-      safe_since_ = now;
+      safe_since_ = clock;
       safe_from_N_ = last_command_N_;
     }
     if (mode == Mode::kFault || mode == Mode::kDisarmed) {
@@ -256,7 +291,7 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
   double weight = out.coupling_weight;
   if (mode == Mode::kSafe) {
     const double ramp = static_cast<double>(settings_.safe_ramp.count());
-    const double since = static_cast<double>((now - safe_since_).count());
+    const double since = static_cast<double>((clock - safe_since_).count());
     weight = ramp <= 0.0 ? 0.0 : std::clamp(1.0 - since / ramp, 0.0, 1.0);
   }
   const std::uint64_t master_sequence =
@@ -324,6 +359,7 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
   rec.round_trip_ns = round_trip_ns_;
   rec.master_sequence = master_sequence;
   rec.parameter_change_id = active_.change_id;
+  rec.alignment_error_m = gap_m;
   if (timing != nullptr && timing->cycles() > 0) {
     rec.wakeup_latency_ns = timing->last_wakeup_latency().count();
   }

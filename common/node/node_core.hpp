@@ -10,9 +10,19 @@
 //    it is); the master feels a weak centring spring with damping toward the slave's position
 //    (x_s / alpha), clamped to centring_max_force_N. Both wait until |alpha x_m - x_s| is within
 //    the alignment tolerance and the peer is aligning or engaged.
-//  - engaged (and the master's clutched): the three-channel law, reset at engagement. The
-//    master blends from the centring force to the law's force over engage_ramp; the slave's law
-//    fades its velocity reference and any start-up mismatch in over the same time.
+//  - engaged (and the master's clutched): the three-channel law, reset at engagement from
+//    aligning. The master blends from the centring force to the law's force over engage_ramp;
+//    the slave's law fades its velocity reference and any start-up mismatch in over the same
+//    time. Clutch and unclutch keep the law (and the ramp where it was): on release the
+//    master's law absorbs the offset the operator indexed (master_law.hpp), so the coupling
+//    resumes with no error and neither side is pulled back.
+//
+// Time: `now` (the deadline) stamps the cycle; ages and stalls are measured against the clock
+// read on waking (LoopTiming::last_woke(), `now` without a loop). A wake-up more than the peer
+// timeout after the previous cycle's, or a burst of overruns (the time lost beyond one period
+// per cycle, less half of each cycle's length, accumulating past the peer timeout: the loop
+// ran less than half its cycles for that long), ends any coupling in safe before a command
+// is written: the peer state and the device command are that old.
 //  - safe: the master's force ramps linearly from its last value to 0 over safe_ramp; the slave
 //    holds its position with its own gains (spring and damping, no master).
 // The peer counts only while coupled on both sides: a master that is engaged while the slave
@@ -110,6 +120,9 @@ struct CycleRecord {
   std::int64_t round_trip_ns{0};
   std::uint64_t master_sequence{0};
   std::uint64_t parameter_change_id{0};
+  // alpha x_m - x_s from both raw positions (slave coordinates; 0 before a peer state): what
+  // aligning brings within the tolerance, shown while aligning.
+  double alignment_error_m{0.0};
 };
 
 // Loop and link statistics the RT thread publishes every kStatsEvery cycles.
@@ -140,8 +153,12 @@ class NodeCore {
   NodeCore(const NodeSettings& settings, device::HapticDevice& device);
 
   // One cycle at `now` (its deadline on the monotonic clock). `timing`: the loop's statistics,
-  // when run by a PeriodicLoop (read on this thread). RT-safe: no allocation, lock, I/O or throw.
+  // when run by a PeriodicLoop (read on this thread); its last_woke() is the clock of the
+  // cycle. RT-safe: no allocation, lock, I/O or throw.
   void step(std::chrono::nanoseconds now, const rt::LoopTiming* timing = nullptr) noexcept;
+  // The same with the clock read at the cycle given (tests: a late wake-up).
+  void step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock,
+            const rt::LoopTiming* timing = nullptr) noexcept;
 
   // Link thread -> RT: the newest accepted peer state.
   [[nodiscard]] rt::LatestValue<PeerSample>& peer_in() noexcept { return peer_in_; }
@@ -209,6 +226,9 @@ class NodeCore {
 
   // RT-thread state.
   std::uint64_t sequence_{0};
+  bool have_clock_{false};
+  std::int64_t last_clock_ns_{0};
+  std::int64_t overrun_debt_ns_{0};
   bool have_peer_{false};
   PeerSample peer_{};
   std::uint64_t peer_restarts_{0};
@@ -218,7 +238,6 @@ class NodeCore {
   std::chrono::nanoseconds safe_since_{0};
   double last_command_N_{0.0};
   double safe_from_N_{0.0};
-  bool scene_started_{false};
   // Parameter changes.
   bool retune_pending_{false};
   Retune pending_{};

@@ -25,14 +25,20 @@ const char* to_string(Mode m) noexcept {
 }
 
 void NodeStateMachine::go(Mode m, const char* why, std::chrono::nanoseconds now) noexcept {
-  if (m == Mode::kEngaged && mode_ != Mode::kEngaged) engaged_at_ = now;
+  // Unclutching continues the engagement (the law absorbs the clutch offset): the coupling
+  // ramps in only when engaging from alignment.
+  if (m == Mode::kEngaged && mode_ != Mode::kEngaged && mode_ != Mode::kClutched) {
+    engaged_at_ = now;
+  }
   mode_ = m;
   reason_ = why;
 }
 
 bool NodeStateMachine::coupling_lost(const CycleInputs& in, bool peer_fresh,
                                      bool peer_may_disengage) noexcept {
-  if (!peer_fresh) {
+  if (in.own_stall != nullptr) {
+    go(Mode::kSafe, in.own_stall, in.now);
+  } else if (!peer_fresh) {
     go(Mode::kSafe, "peer timeout", in.now);
   } else if (in.peer_failed) {
     go(Mode::kSafe, "peer safe, faulted or restarted", in.now);

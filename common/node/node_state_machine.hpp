@@ -40,6 +40,10 @@ struct CycleInputs {
   bool peer_failed{false};
   // The peer left coupling by command (disarmed or armed): coupling ends in armed.
   bool peer_disengaged{false};
+  // The node's own loop stalled (woke later than the peer timeout after its previous cycle,
+  // or overran in a burst): whatever it knows of the peer and its device is that old, so
+  // coupling ends in safe at once, before a command is written. Non-null: why (static).
+  const char* own_stall{nullptr};
 };
 
 struct CycleOutputs {
@@ -60,8 +64,8 @@ class NodeStateMachine {
 
  private:
   void go(Mode m, const char* why, std::chrono::nanoseconds now) noexcept;
-  // While aligning, engaged or clutched: a stale, failed, restarted (or, once coupled,
-  // disengaged) peer ends the coupling. True when it did.
+  // While aligning, engaged or clutched: an own stall, a stale, failed, restarted (or, once
+  // coupled, disengaged) peer ends the coupling. True when it did.
   bool coupling_lost(const CycleInputs& in, bool peer_fresh, bool peer_may_disengage) noexcept;
 
   StateMachineParams params_{};

@@ -55,6 +55,10 @@ class LoopTiming {
     return last_wakeup_;
   }
   [[nodiscard]] const LatencyHistogram& compute_time() const noexcept { return compute_; }
+  // The clock read on waking for the newest cycle (its deadline plus the wake-up latency):
+  // what ages and stalls are measured against, since after a stall the deadline woke() returns
+  // lies in the past.
+  [[nodiscard]] TimePoint last_woke() const noexcept { return cycle_start_; }
 
  private:
   std::chrono::nanoseconds period_;

@@ -26,7 +26,8 @@ std::vector<std::string> apply_rt_settings(const RtSettings& settings);
 
 // Runs `step(deadline)` once per period on its own thread until stop(). `step` is the node's
 // RT step: it must not allocate, lock or throw; it receives the cycle's deadline on the
-// monotonic clock (ns since its epoch).
+// monotonic clock (ns since its epoch). After a stall that deadline is in the past: the clock
+// read on waking is timing().last_woke() (read on the loop's thread, inside step).
 class PeriodicLoop {
  public:
   using Step = std::function<void(std::chrono::nanoseconds deadline)>;

@@ -373,6 +373,7 @@ void NodeApp::start() {
         c->set_round_trip_ns(rec->round_trip_ns);
         c->set_master_sequence(rec->master_sequence);
         c->set_parameter_change_id(rec->parameter_change_id);
+        c->set_alignment_error_m(rec->alignment_error_m);
         if (rec->mode != last_mode) {
           spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
                        rec->reason);

@@ -129,6 +129,7 @@ void NodeSummaryBuilder::fill(v1::NodeSummary& out, std::int64_t now_ns,
     out.set_force_n(newest_cycle_.force_n());
     out.set_command_n(newest_cycle_.command_n());
     out.set_fixture_penetration_m(penetration(newest_cycle_.position_m(), stiffness));
+    out.set_alignment_error_m(newest_cycle_.alignment_error_m());
   }
   const double bucket_s = static_cast<double>(bucket_ns_) * 1e-9;
   v1::Trace* traces[] = {out.mutable_position_trace_m(), out.mutable_force_trace_n(),

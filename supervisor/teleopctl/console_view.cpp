@@ -81,6 +81,10 @@ std::string node_row(const char* name, const v1::NodeSummary& n) {
                   n.loop().overruns(), n.overruns_last_minute(), pad(rt_text(n.rt()), 14));
   if (n.mode() == v1::SAFE || n.mode() == v1::FAULT || !n.alive()) {
     row += " " + n.mode_reason();
+  } else if (n.mode() == v1::ALIGNING) {
+    // What the operator is being guided to close: alpha x_m - x_s.
+    row += fmt::format(" x{:+6.2f}mm gap{:+6.2f}mm", n.position_m() * 1e3,
+                       n.alignment_error_m() * 1e3);
   } else {
     row += fmt::format(" x{:+6.2f}mm F{:+5.2f}N", n.position_m() * 1e3, n.force_n());
   }

@@ -176,6 +176,27 @@ TEST(ConsoleScreen, SilentAndSafeNodesShowTheirReason) {
   EXPECT_TRUE(has_line_starting(lines, "slave  SILENT")) << joined(lines);
 }
 
+TEST(ConsoleScreen, AnAligningNodeShowsItsAlignmentErrorInMillimetres) {
+  // Aligning after a safe (issue 14, finding 11): the operator is guided to close the gap
+  // alpha x_m - x_s, so the row shows it (here 21.40 mm - 4.10 mm = +17.30 mm) next to x.
+  ConsoleView v;
+  v.status = engaged_status();
+  for (v1::NodeSummary* n : {v.status->mutable_master(), v.status->mutable_slave()}) {
+    n->set_mode(v1::ALIGNING);
+    n->set_alignment_error_m(0.0173);
+  }
+  v.status->mutable_master()->set_position_m(0.0214);
+  v.status->mutable_slave()->set_position_m(0.0041);
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  for (const std::string& l : lines) EXPECT_LE(l.size(), 80u) << l;
+  EXPECT_TRUE(has_line_starting(lines, "master ALIGNING")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "x+21.40mm gap+17.30mm")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "x +4.10mm gap+17.30mm")) << joined(lines);
+  // Engaged, the row shows the force instead (the gap is the coupling's business then).
+  v.status->mutable_master()->set_mode(v1::ENGAGED);
+  EXPECT_FALSE(contains(render_console(v, 24, 80), "gap+17.30mm"));
+}
+
 TEST(ConsoleScreen, AlarmsNewestFirstWithTheirAgeEvidenceAndAction) {
   ConsoleView v;
   v.status = engaged_status();

@@ -96,7 +96,10 @@ TEST(NodeStateMachine, EStopFromEveryStateAndFaultsLatch) {
   EXPECT_EQ(d.cycle(Command::kClear).mode, Mode::kDisarmed);
 }
 
-TEST(NodeStateMachine, ClutchHoldsEngagementAndReRampsOnRelease) {
+// Release continues the engagement (issue 14, finding 10): the law absorbs the clutch offset
+// and fades its own coupling back in (master_law.hpp); a restarted engage ramp would blend the
+// centring spring back in and pull the hand toward the slave.
+TEST(NodeStateMachine, ClutchHoldsEngagementAndReleaseKeepsTheEngageRampDone) {
   Driver d;
   d.aligned = true;
   (void)d.cycle(Command::kArm);
@@ -106,8 +109,36 @@ TEST(NodeStateMachine, ClutchHoldsEngagementAndReRampsOnRelease) {
   EXPECT_EQ(d.cycle(Command::kClutch).mode, Mode::kClutched);
   CycleOutputs o = d.cycle(Command::kUnclutch);
   EXPECT_EQ(o.mode, Mode::kEngaged);
-  EXPECT_EQ(o.coupling_weight, 0.0);
+  EXPECT_EQ(o.coupling_weight, 1.0);
   EXPECT_EQ(d.cycle(Command::kDisengage).mode, Mode::kArmed);
+}
+
+// Issue 14, finding 6: the node's own stall ends any coupling in safe at once, naming why,
+// even with the peer's state fresh; outside coupling there is nothing to end.
+TEST(NodeStateMachine, AnOwnStallSendsAligningEngagedAndClutchedSafeAtOnce) {
+  for (const int stage : {0, 1, 2}) {
+    Driver d;
+    d.aligned = stage > 0;
+    (void)d.cycle(Command::kArm);
+    (void)d.cycle(Command::kEngage);
+    if (stage > 0) (void)d.cycle();
+    if (stage == 2) (void)d.cycle(Command::kClutch);
+    const Mode before = d.sm.mode();
+    ASSERT_EQ(before, stage == 0 ? Mode::kAligning : stage == 1 ? Mode::kEngaged : Mode::kClutched);
+    d.now += milliseconds(1);
+    CycleInputs in{d.now, Command::kNone, nanoseconds(0), true, d.aligned, false, false};
+    in.own_stall = "own loop stalled past the peer timeout";
+    const CycleOutputs o = d.sm.step(in);
+    EXPECT_EQ(o.mode, Mode::kSafe) << stage;
+    EXPECT_STREQ(o.reason, "own loop stalled past the peer timeout");
+    EXPECT_FALSE(o.actuators_enabled);
+  }
+  Driver d;
+  (void)d.cycle(Command::kArm);
+  d.now += milliseconds(1);
+  CycleInputs in{d.now, Command::kNone, nanoseconds(0), true, false, false, false};
+  in.own_stall = "own loop stalled past the peer timeout";
+  EXPECT_EQ(d.sm.step(in).mode, Mode::kArmed);
 }
 
 }  // namespace

@@ -560,3 +560,22 @@ TEST(FeedMonitors, OscillationReadsZeroUntilFullThenTheSinesAmplitudeAndFrequenc
 
 }  // namespace
 }  // namespace teleop::supervisor
+
+namespace teleop::supervisor {
+namespace {
+
+TEST(StatusBuilderAlignment, TheNewestCyclesAlignmentErrorReachesTheSummary) {
+  // Aligning (issue 14, finding 11): the console shows the gap the operator is guided to close.
+  NodeSummaryBuilder b(true, 0.01, 1000.0);
+  std::vector<v1::CycleRecord> cycles;
+  for (int k = 0; k < 5; ++k) {
+    v1::CycleRecord c = cycle(kS + k * kMs, 0.02 - 0.001 * k, 0.0, 0.0, -0.5, v1::ALIGNING);
+    c.set_alignment_error_m(0.016 - 0.001 * k);
+    cycles.push_back(c);
+  }
+  send_in_batches(b, cycles, 2);
+  EXPECT_EQ(summary(b, kS + 5 * kMs).alignment_error_m(), 0.016 - 0.001 * 4);
+}
+
+}  // namespace
+}  // namespace teleop::supervisor
