@@ -5,6 +5,7 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <sys/random.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <deque>
@@ -330,6 +331,8 @@ void NodeApp::start() {
       }
       reply.set_mode(to_proto(core.mode()));
       reply.set_mode_reason(core.mode_reason());
+      reply.set_pid(static_cast<std::uint32_t>(::getpid()));
+      reply.set_session_id(setup_.settings.session_id);
       const std::string out = reply.SerializeAsString();
       (void)m.command_rep->send(zmq::buffer(out), zmq::send_flags::dontwait);
     }
@@ -354,6 +357,7 @@ void NodeApp::start() {
       t.Clear();
       t.set_session_id(setup_.settings.session_id);
       t.set_role(to_proto(setup_.settings.role));
+      t.set_pid(static_cast<std::uint32_t>(::getpid()));
       t.set_device(setup_.device_kind == device::DeviceKind::kSim ? "sim" : "usb");
       while (const auto rec = core.telemetry_out().try_pop()) {
         v1::CycleRecord* c = t.add_cycles();

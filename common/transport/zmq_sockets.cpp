@@ -29,6 +29,19 @@ void set_reconnect(zmq::socket_t& socket) {
 
 }  // namespace
 
+BindError::BindError(int err, std::string_view endpoint)
+    : zmq::error_t(err),
+      endpoint_(endpoint),
+      message_(fmt::format("cannot bind {}: {}", endpoint, zmq_strerror(err))) {}
+
+void bind_or_throw(zmq::socket_t& socket, std::string_view endpoint) {
+  try {
+    socket.bind(std::string(endpoint));
+  } catch (const zmq::error_t& e) {
+    throw BindError(e.num(), endpoint);
+  }
+}
+
 zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
                                    const LinkSecurity& security) {
   zmq::socket_t socket(ctx, zmq::socket_type::pub);
@@ -38,7 +51,7 @@ zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoin
   // conflation would drop the newest; see the header).
   socket.set(zmq::sockopt::xpub_nodrop, false);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
-  socket.bind(std::string(endpoint));
+  bind_or_throw(socket, endpoint);
   return socket;
 }
 
@@ -49,7 +62,7 @@ zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view end
   socket.set(zmq::sockopt::sndhwm, 1000);
   socket.set(zmq::sockopt::xpub_nodrop, false);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
-  socket.bind(std::string(endpoint));
+  bind_or_throw(socket, endpoint);
   return socket;
 }
 
@@ -73,7 +86,7 @@ zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint
   set_common(socket);
   socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
-  socket.bind(std::string(endpoint));
+  bind_or_throw(socket, endpoint);
   return socket;
 }
 

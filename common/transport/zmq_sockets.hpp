@@ -61,9 +61,25 @@ inline constexpr int kStateReceiveHwm = 1000;
 // oversized frame never costs the receiver its memory nor reaches a parser.
 inline constexpr std::int64_t kMaxInboundMessageBytes = 64 * 1024;
 
+// A failed bind: the zmq::error_t (num() is the errno, EADDRINUSE for a port in use) whose
+// what() names the endpoint, e.g. "cannot bind tcp://127.0.0.1:5562: Address already in use".
+class BindError : public zmq::error_t {
+ public:
+  BindError(int err, std::string_view endpoint);
+  [[nodiscard]] const char* what() const noexcept override { return message_.c_str(); }
+  [[nodiscard]] const std::string& endpoint() const noexcept { return endpoint_; }
+
+ private:
+  std::string endpoint_;
+  std::string message_;
+};
+
+// socket.bind(endpoint), a failure thrown as BindError.
+void bind_or_throw(zmq::socket_t& socket, std::string_view endpoint);
+
 // A PUB bound to `endpoint` (server side of the security policy); "tcp://127.0.0.1:*" picks a
 // free port, read back with bound_endpoint(). Throws std::invalid_argument when the policy
-// forbids the setup, zmq::error_t when binding fails.
+// forbids the setup, BindError (a zmq::error_t naming the endpoint) when binding fails.
 [[nodiscard]] zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
                                                  const LinkSecurity& security);
 

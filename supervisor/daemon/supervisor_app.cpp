@@ -6,10 +6,12 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 #include <time.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <deque>
+#include <filesystem>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -34,6 +36,9 @@ using namespace std::chrono_literals;
 
 // The model's round trip comes down only after the shorter one has held this long.
 constexpr std::int64_t kRoundTripHoldNs = 5'000'000'000;
+// A main-loop iteration later than this after the previous one: the supervisor itself stalled
+// (its poll waits at most 20 ms, a status request takes at most a node command's 0.5 s).
+constexpr std::int64_t kOwnStallNs = 250'000'000;
 
 std::int64_t monotonic_ns() {
   timespec ts{};
@@ -611,7 +616,10 @@ struct SupervisorApp::Impl {
       s.set_recording_drops(opts.sink->drops());
       s.set_recording_bytes(opts.sink->bytes());
       s.set_recording_error(opts.sink->error());
+    } else if (!opts.record_failure.empty()) {
+      s.set_recording_error(opts.record_failure);
     }
+    s.set_pid(static_cast<std::uint32_t>(::getpid()));
     s.set_master_alive(master.last && now - master.last_received_ns < 500'000'000);
     s.set_slave_alive(slave.last && now - slave.last_received_ns < 500'000'000);
     master.summary->fill(*s.mutable_master(), now,
@@ -711,6 +719,47 @@ struct SupervisorApp::Impl {
            "e-stop only";
   }
 
+  // --- isolation and own faults (issue 14, findings 8 and 9) ---------------------------------
+  // Recording was asked for and could not start: said once, loudly, at start.
+  void announce_record_failure() {
+    if (opts.sink || opts.record_failure.empty()) return;
+    alarm(v1::Alarm::CRITICAL, "recorder", "system",
+          "not recording: " + opts.record_failure + " (supervising without recording)", {});
+  }
+
+  // The session file vanished under a running recorder (its directory removed): the writes
+  // go to an unlinked file and the session is lost. Said once, loudly.
+  void check_recording_file() {
+    if (!opts.sink || recording_file_lost_announced) return;
+    const std::string file = opts.sink->file();
+    std::error_code ec;
+    if (file.empty() || std::filesystem::exists(file, ec) || ec) return;
+    recording_file_lost_announced = true;
+    alarm(v1::Alarm::CRITICAL, "recorder", "system",
+          "recording file " + file +
+              " no longer exists (record directory removed?): this session is not being kept",
+          {{"recorded_messages", static_cast<double>(opts.sink->recorded()), ""}});
+  }
+
+  // The supervisor's own loop stood still (SIGSTOP, a debugger, swapped out): the nodes'
+  // telemetry of that time is still queued, so silence is not judged from before the stall.
+  // Each node gets the full heartbeat window from now; a node that really stopped is
+  // still found 0.5 s later. The stall itself is reported.
+  void excuse_own_stall() {
+    const std::int64_t now = monotonic_ns();
+    const std::int64_t gap = last_iteration_ns == 0 ? 0 : now - last_iteration_ns;
+    last_iteration_ns = now;
+    if (gap < kOwnStallNs) return;
+    for (NodeView* n : {&master, &slave}) {
+      if (n->last) n->last_received_ns = std::max(n->last_received_ns, now);
+    }
+    alarm(v1::Alarm::INFO, "supervisor", "system",
+          fmt::format("the supervisor's own loop stalled for {:.3f} s; node heartbeats judged "
+                      "from now",
+                      static_cast<double>(gap) * 1e-9),
+          {{"stall", static_cast<double>(gap) * 1e-9, "s"}});
+  }
+
   void run(const std::atomic<bool>& stop) {
     zap.emplace(ctx);
     report_pub.emplace(
@@ -722,12 +771,14 @@ struct SupervisorApp::Impl {
         subscribe(slave_setup.endpoints.telemetry, loaded.config.security().slave_public_key());
     record("/config", loaded.config);
     publish_report("start");
+    announce_record_failure();
     spdlog::info("supervising master {} and slave {}; reports on {}, requests on {}",
                  master_setup.endpoints.telemetry, slave_setup.endpoints.telemetry, report_endpoint,
                  request_endpoint);
     std::int64_t next_check = monotonic_ns();
     while (!stop.load()) {
       iterations.fetch_add(1, std::memory_order_relaxed);
+      excuse_own_stall();
       zmq::pollitem_t items[] = {{master_sub.handle(), 0, ZMQ_POLLIN, 0},
                                  {slave_sub.handle(), 0, ZMQ_POLLIN, 0},
                                  {request_rep->handle(), 0, ZMQ_POLLIN, 0}};
@@ -781,6 +832,7 @@ struct SupervisorApp::Impl {
         check_live();
         // A recorder that stopped on an error (disk full) is said once, loudly; the nodes are
         // not affected and the file keeps every chunk written before it.
+        check_recording_file();
         if (opts.sink && !recorder_failure_announced) {
           const std::string why = opts.sink->error();
           if (!why.empty()) {
@@ -845,6 +897,8 @@ struct SupervisorApp::Impl {
   std::vector<std::string> read_only_keys{};
   bool heard_master{false};
   bool recorder_failure_announced{false};
+  bool recording_file_lost_announced{false};
+  std::int64_t last_iteration_ns{0};
   int escalation_stage{0};
   std::int64_t escalated_ns{0};  // stage 1: when the lowered stiffness is fully in force
   bool settled{true};

@@ -39,6 +39,9 @@ struct SupervisorOptions {
   std::function<std::unique_ptr<RecordSink>()> new_sink{};
   std::string record_dir{};
   std::string log_file{};  // rotating log file; empty: terminal only
+  // Recording was asked for but could not start (e.g. a read-only record directory): why.
+  // The supervisor then supervises without recording and raises a CRITICAL alarm at start.
+  std::string record_failure{};
 };
 
 class SupervisorApp {

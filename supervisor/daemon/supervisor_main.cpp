@@ -25,6 +25,27 @@ void usage(std::ostream& os) {
         "live system misbehaves, and records the session (MCAP) in DIR. Stops on SIGINT/SIGTERM.\n";
 }
 
+// The session file and the log file in `dir`. A directory that cannot be created or written
+// (read-only, a file in the way) is not fatal: the supervisor supervises without recording
+// and says why (options.record_failure, a CRITICAL alarm at start).
+void start_recording(const std::filesystem::path& dir, SupervisorOptions& options,
+                     std::vector<spdlog::sink_ptr>& sinks) {
+  try {
+    std::filesystem::create_directories(dir);
+    options.sink = make_session_recorder(dir);
+  } catch (const std::exception& e) {
+    options.sink.reset();
+    options.record_failure = "cannot record in " + dir.string() + ": " + e.what();
+    return;
+  }
+  try {
+    sinks.push_back(std::make_shared<spdlog::sinks::rotating_file_sink_mt>(
+        (dir / "teleop-supervisor.log").string(), 5 * 1024 * 1024, 3));
+  } catch (const std::exception& e) {
+    std::cerr << "teleop-supervisor: no log file in " << dir.string() << ": " << e.what() << "\n";
+  }
+}
+
 }  // namespace
 
 int run_supervisor_main(int argc, char** argv) {
@@ -82,15 +103,15 @@ int run_supervisor_main(int argc, char** argv) {
       std::filesystem::create_directories(dir);
       return make_session_recorder(dir);
     };
-    if (recording) {
-      std::filesystem::create_directories(dir);
-      options.sink = make_session_recorder(dir);
-      sinks.push_back(std::make_shared<spdlog::sinks::rotating_file_sink_mt>(
-          (dir / "teleop-supervisor.log").string(), 5 * 1024 * 1024, 3));
-    }
+    if (recording) start_recording(dir, options, sinks);
     auto logger = std::make_shared<spdlog::logger>("teleop-supervisor", sinks.begin(), sinks.end());
     logger->set_pattern("[%H:%M:%S.%e] [teleop-supervisor] [%^%l%$] %v");
+    // Every line reaches the log file at once: a kill -9 keeps everything logged before it.
+    logger->flush_on(spdlog::level::trace);
     spdlog::set_default_logger(logger);
+    if (!options.record_failure.empty()) {
+      spdlog::critical("not recording: {} (supervising without recording)", options.record_failure);
+    }
     if (options.sink) spdlog::info("recording to {}", options.sink->file());
     // systemd (Type=notify): logs whether the watchdog is on, once the logger is set up.
     notifier.emplace("main loop");

@@ -19,6 +19,7 @@
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/launch_isolation.hpp"
 
 namespace teleop::ctl {
 namespace {
@@ -87,6 +88,29 @@ pid_t spawn(const std::string& binary, const std::vector<std::string>& args) {
   return pid;
 }
 
+// --instance N: a whole number in 0..kMaxInstance.
+int parse_instance(const std::string& text) {
+  const double v = parse_number(text, "--instance");
+  if (!(v >= 0.0 && v <= kMaxInstance) || v != static_cast<double>(static_cast<int>(v))) {
+    throw UsageError("--instance must be a whole number in 0.." + std::to_string(kMaxInstance) +
+                     ", got '" + text + "'");
+  }
+  return static_cast<int>(v);
+}
+
+// What is wrong with a node's reply to launch's arm or engage ("" when nothing): no reply, a
+// refusal, or a reply from a process launch did not start.
+std::string launch_reply_problem(v1::NodeCommand::Kind kind,
+                                 const std::optional<v1::NodeCommandReply>& reply, pid_t pid) {
+  if (!reply) return "no reply";
+  if (reply->pid() != static_cast<std::uint32_t>(pid)) {
+    return fmt::format("answered by pid {}, not by the node this launch started (pid {})",
+                       reply->pid(), pid);
+  }
+  if (!reply->ok()) return reply->message().empty() ? reply->mode_reason() : reply->message();
+  return command_refusal(kind, *reply);
+}
+
 }  // namespace
 
 std::string to_endpoint(const std::string& address) {
@@ -123,7 +147,9 @@ std::string node_usage() {
          "shutdown. Off loopback the node requires CURVE: --key is this client's key file\n"
          "(teleopctl keygen; its public key must be in the configuration's\n"
          "security.client_public_keys) and --server-key the node's public key.\n"
-         "Exit: 0 taken, 1 error, 2 usage, 3 refused by the node, 4 no reply.\n";
+         "Exit: 0 taken (the node reached the mode the command asks for), 1 error, 2 usage,\n"
+         "3 refused by the node (its mode and reason printed: e.g. engage on a SAFE node),\n"
+         "4 no reply.\n";
 }
 
 int run_node_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -159,18 +185,29 @@ int run_node_command(const std::vector<std::string>& args, std::ostream& out, st
     out << role_name(reply->role()) << " " << endpoint << ": " << mode_name(reply->mode());
     if (!reply->mode_reason().empty()) out << " (" << reply->mode_reason() << ")";
     if (!reply->message().empty()) out << ": " << reply->message();
+    // The loop took the command, but the state machine ignores what the mode does not allow.
+    const std::string refusal = reply->ok() ? command_refusal(it->second, *reply) : "";
+    if (!refusal.empty()) out << ": refused: " << refusal;
     out << "\n";
-    return reply->ok() ? kExitOk : kExitRefused;
+    return reply->ok() && refusal.empty() ? kExitOk : kExitRefused;
   });
 }
 
 std::string launch_usage() {
   return "usage: teleopctl launch CONFIG [--set PATH=VALUE]... [--duration S] [--no-engage]\n"
-         "                        [--record-dir DIR] [--no-supervisor]\n\n"
+         "                        [--record-dir DIR] [--no-supervisor] [--instance N]\n\n"
          "Starts teleop-master and teleop-slave on loopback with simulated devices (the scene's\n"
          "human and environment, when CONFIG has a scene) and teleop-supervisor (recording the\n"
          "session in DIR, default ./sessions), arms and engages both nodes, and prints their\n"
-         "state once a second until Ctrl-C (or --duration S), then stops all cleanly.\n";
+         "state once a second until Ctrl-C (or --duration S), then stops all cleanly.\n\n"
+         "Before arming, launch checks that every endpoint is answered by the very process it\n"
+         "started (the pid in the reply): when another teleoperator holds a port, launch says\n"
+         "which endpoint and which pid, stops what it started and exits 1.\n"
+         "--instance N (0-99, default 0) runs a second (third...) teleoperator on this host:\n"
+         "every port of CONFIG, given or default, moves up by 10*N (instance 1: nodes\n"
+         "5570-5575, supervisor 5576/5577) and the default record directory is\n"
+         "./sessions/instance-N. Launch prints the endpoints; address them as usual, e.g.\n"
+         "'teleopctl status --supervisor 127.0.0.1:5577', 'teleopctl node 127.0.0.1:5572 estop'.\n";
 }
 
 int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -180,6 +217,8 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
   bool engage = true;
   bool supervise = true;
   std::string record_dir = "sessions";
+  bool record_dir_given = false;
+  int instance = 0;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
@@ -196,6 +235,9 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
       supervise = false;
     } else if (a == "--record-dir") {
       record_dir = cur.value("--record-dir");
+      record_dir_given = true;
+    } else if (a == "--instance") {
+      instance = parse_instance(cur.value("--instance"));
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
     } else if (config_path.empty()) {
@@ -210,7 +252,20 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
 
   return run_guarded("launch", err, [&]() -> int {
     // Check the configuration here first: a bad file is reported once, before any process.
-    const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
+    config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
+    // Instance N: every endpoint moved; loaded again so that the moved file is what is checked.
+    if (instance > 0) {
+      // Each moved path replaces the user's own --set of it (already moved with the rest).
+      const std::vector<std::string> moved = instance_overrides(loaded, instance);
+      auto path_of = [](const std::string& o) { return o.substr(0, o.find('=')); };
+      std::erase_if(overrides, [&](const std::string& o) {
+        return std::any_of(moved.begin(), moved.end(),
+                           [&](const std::string& m) { return path_of(m) == path_of(o); });
+      });
+      overrides.insert(overrides.end(), moved.begin(), moved.end());
+      loaded = config::load_config_file(config_path, overrides);
+      if (!record_dir_given) record_dir = record_dir + "/instance-" + std::to_string(instance);
+    }
     const config::NodeSetup master = config::to_node_setup(loaded, transport::Role::kMaster);
     const config::NodeSetup slave = config::to_node_setup(loaded, transport::Role::kSlave);
     for (const std::string& e : {master.endpoints.state, slave.endpoints.state,
@@ -259,6 +314,46 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
              WEXITSTATUS(ss) == 0;
     };
 
+    // The processes answering must be the ones just started (finding 8 of issue 14): else
+    // nothing is armed, and what this launch started is stopped.
+    std::uint64_t master_session = 0;
+    std::uint64_t slave_session = 0;
+    {
+      const NodeClientKeys none;
+      std::vector<LaunchedProcess> own;
+      auto add = [&](const std::string& name, pid_t pid, const std::string& endpoint, bool sup) {
+        LaunchedProcess lp;
+        lp.name = name;
+        lp.pid = pid;
+        lp.endpoint = endpoint;
+        lp.supervisor = sup;
+        lp.keys = none;
+        own.push_back(lp);
+      };
+      add("teleop-master", master_pid, master.endpoints.command, false);
+      add("teleop-slave", slave_pid, slave.endpoints.command, false);
+      if (supervise) {
+        add("teleop-supervisor", supervisor_pid, supervisor_request_endpoint(loaded), true);
+      }
+      const std::string why = confirm_own_processes(own, 10000);
+      if (!why.empty()) {
+        stop_all();
+        if (g_interrupted) return kExitOk;
+        err << "teleopctl launch: refused: " << why << "\n";
+        return kExitError;
+      }
+      master_session = own[0].session_id;
+      slave_session = own[1].session_id;
+      out << fmt::format("instance {}: master pid {} (commands {}), slave pid {} (commands {})",
+                         instance, master_pid, master.endpoints.command, slave_pid,
+                         slave.endpoints.command);
+      if (supervise) {
+        out << fmt::format(", supervisor pid {} (requests {}, reports {})", supervisor_pid,
+                           supervisor_request_endpoint(loaded), supervisor_report_endpoint(loaded));
+      }
+      out << std::endl;
+    }
+
     zmq::context_t ctx(1);
     auto subscribe = [&](const std::string& endpoint) {
       zmq::socket_t s(ctx, zmq::socket_type::sub);
@@ -272,12 +367,17 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     zmq::socket_t slave_tel = subscribe(slave.endpoints.telemetry);
     std::optional<v1::Telemetry> mt;
     std::optional<v1::Telemetry> st;
+    // Only the telemetry of the nodes this launch started (their session ids, confirmed).
     auto poll_telemetry = [&] {
-      for (auto [sock, dst] : {std::pair{&master_tel, &mt}, std::pair{&slave_tel, &st}}) {
+      for (auto [sock, dst, session] : {std::tuple{&master_tel, &mt, master_session},
+                                        std::tuple{&slave_tel, &st, slave_session}}) {
         zmq::message_t msg;
         while (sock->recv(msg, zmq::recv_flags::dontwait)) {
           v1::Telemetry t;
-          if (t.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) *dst = t;
+          if (t.ParseFromArray(msg.data(), static_cast<int>(msg.size())) &&
+              t.session_id() == session) {
+            *dst = t;
+          }
         }
       }
     };
@@ -312,11 +412,13 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     if (engage) {
       const NodeClientKeys none;
       for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
-        for (const std::string& e : {master.endpoints.command, slave.endpoints.command}) {
+        for (const auto& [e, pid] : {std::pair{master.endpoints.command, master_pid},
+                                     std::pair{slave.endpoints.command, slave_pid}}) {
           const auto reply = send_node_command(e, kind, none, 2000);
-          if (!reply || !reply->ok()) {
+          const std::string why = launch_reply_problem(kind, reply, pid);
+          if (!why.empty()) {
             err << "teleopctl launch: " << v1::NodeCommand::Kind_Name(kind) << " " << e << ": "
-                << (reply ? reply->mode_reason() : std::string("no reply")) << "\n";
+                << why << "\n";
           }
         }
       }

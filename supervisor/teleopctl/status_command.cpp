@@ -86,7 +86,8 @@ std::string status_usage() {
          "                       [--server-key KEY|FILE] [--timeout-ms N]\n\n"
          "The supervisor's status (default 127.0.0.1:5567): its stability report (verdict,\n"
          "minimum damping ratio, round trip, fixtures against their limits), whether each node's\n"
-         "telemetry is arriving, the recording (file, messages, drops) and the newest alarms.\n"
+         "telemetry is arriving, each node's mode and its reason, the recording (file, messages,\n"
+         "drops) and the newest alarms.\n"
          "--json prints teleop.v1.SupervisorStatus as JSON (proto/teleop/v1/supervisor.proto,\n"
          "field names in lowerCamelCase). Exit 0, 1 error, 4 no reply.\n";
 }
@@ -141,6 +142,12 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
     }
     out << "nodes: master " << (s.master_alive() ? "alive" : "SILENT") << ", slave "
         << (s.slave_alive() ? "alive" : "SILENT") << "\n";
+    // Each node's mode and why (the last transition's reason), as its telemetry says.
+    for (const auto& [name, n] :
+         {std::pair{"master", &s.master()}, std::pair{"slave", &s.slave()}}) {
+      out << "  " << name << ": " << v1::NodeMode_Name(n->mode())
+          << (n->mode_reason().empty() ? std::string() : " (" + n->mode_reason() + ")") << "\n";
+    }
     out << "recording: " << (s.recording_file().empty() ? "off" : s.recording_file()) << ", "
         << s.recorded_messages() << " messages, " << s.recording_drops() << " dropped\n";
     out << "alarms (newest first): " << s.recent_alarms_size() << "\n";
