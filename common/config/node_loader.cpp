@@ -218,10 +218,13 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
     out.keys.allowed_client_keys.push_back(sec.client_public_keys(i));
   }
   check_key("security.supervisor_public_key", sec.supervisor_public_key());
+  out.keys.supervisor_public_key = sec.supervisor_public_key();
   for (int i = 0; i < sec.read_only_client_public_keys_size(); ++i) {
     check_key("security.read_only_client_public_keys[" + std::to_string(i) + "]",
               sec.read_only_client_public_keys(i));
+    out.keys.read_only_client_keys.push_back(sec.read_only_client_public_keys(i));
   }
+  out.keys.allow_unauthenticated_retune = sec.allow_unauthenticated_retune();
   p.throw_if_any();
   return out;
 }

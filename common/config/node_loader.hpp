@@ -28,6 +28,11 @@ struct NodeKeys {
   std::string own_public_key{};   // security.<role>_public_key, checked against the secret key
   std::string peer_public_key{};  // the peer's, to connect to its publisher
   std::vector<std::string> allowed_client_keys{};  // the peer's plus security.client_public_keys
+  // Who may do what on the command endpoint (runtime/command_authority.hpp): the supervisor's
+  // key alone may RETUNE; read-only keys may only e-stop and ask for status.
+  std::string supervisor_public_key{};               // security.supervisor_public_key
+  std::vector<std::string> read_only_client_keys{};  // security.read_only_client_public_keys
+  bool allow_unauthenticated_retune{false};          // security.allow_unauthenticated_retune
 };
 
 struct UsbIds {

@@ -16,6 +16,7 @@
 
 #include "common/device/sim_device.hpp"
 #include "common/rt/cpu_dma_latency.hpp"
+#include "common/runtime/command_authority.hpp"
 #include "common/transport/socket_monitor.hpp"
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
@@ -125,6 +126,8 @@ std::uint64_t random_session_id() {
 struct NodeApp::Impl {
   zmq::context_t ctx{1};
   std::optional<transport::ZapHandler> zap{};
+  CommandAuthority authority{};
+  std::uint64_t newest_retune_id{0};  // the command thread's: the newest change number taken
   transport::LinkSecurity server_security{};
   transport::LinkSecurity client_security{};
   std::optional<zmq::socket_t> state_pub{};
@@ -174,7 +177,9 @@ void NodeApp::start() {
   }
   m.server_security.insecure = setup_.keys.insecure;
   m.server_security.own = own;
-  m.server_security.allowed_client_keys = setup_.keys.allowed_client_keys;
+  // The supervisor and read-only consoles connect too; command_allowed() decides per request.
+  m.server_security.allowed_client_keys =
+      own ? admitted_client_keys(setup_.keys) : setup_.keys.allowed_client_keys;
   m.client_security.insecure = setup_.keys.insecure;
   m.client_security.own = own;
   if (!setup_.keys.peer_public_key.empty()) {
@@ -204,6 +209,12 @@ void NodeApp::start() {
       m.ctx,
       std::vector<zmq::socket_t*>{&*m.state_pub, &*m.command_rep, &*m.telemetry_pub, &*m.state_sub},
       setup_.settings.role == Role::kMaster ? "master" : "slave");
+  // Who may do what on the command endpoint (CURVE: each request carries its caller's key).
+  m.authority = command_authority(
+      setup_.keys,
+      transport::choose_mechanism(setup_.endpoints.command, transport::LinkRole::kServer,
+                                  m.server_security) == transport::LinkMechanism::kCurve);
+  for (const std::string& w : authority_warnings(m.authority)) spdlog::warn("{}", w);
 
   if (setup_.cpu_dma_latency_us >= 0) {
     m.dma.emplace(setup_.cpu_dma_latency_us);
@@ -280,6 +291,23 @@ void NodeApp::start() {
       if (!cmd.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
         reply.set_ok(false);
         reply.set_message("malformed command");
+      } else if (const std::string refusal = command_refusal(
+                     m.authority, cmd.kind(), caller_key(request, m.authority.authenticated));
+                 !refusal.empty()) {
+        reply.set_ok(false);
+        reply.set_refused_unauthorized(true);
+        reply.set_message(refusal);
+        spdlog::warn("{}", refusal);
+      } else if (cmd.kind() == v1::NodeCommand::RETUNE && cmd.update().change_id() != 0 &&
+                 cmd.update().change_id() <= m.newest_retune_id) {
+        // Change numbers only grow: a replayed or reused one could bring back values that no
+        // longer hold (the supervisor lowered them since).
+        reply.set_ok(false);
+        reply.set_message("parameter update refused: change " +
+                          std::to_string(cmd.update().change_id()) + " is not newer than change " +
+                          std::to_string(m.newest_retune_id) +
+                          " already taken (replayed or reused change number)");
+        spdlog::warn("{}", reply.message());
       } else if (cmd.kind() == v1::NodeCommand::STATUS) {
         reply.set_ok(true);
       } else if (cmd.kind() == v1::NodeCommand::RETUNE) {
@@ -290,6 +318,7 @@ void NodeApp::start() {
           reply.set_message("parameter update refused: " + why);
         } else {
           core.post_retune(*r);
+          m.newest_retune_id = r->id;
           reply.set_ok(true);
           reply.set_message("change " + std::to_string(r->id) + " applies at master sequence " +
                             std::to_string(r->apply_at_master_sequence));

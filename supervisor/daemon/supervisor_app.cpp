@@ -22,6 +22,7 @@
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/daemon/monitors.hpp"
+#include "supervisor/daemon/parameter_audit.hpp"
 #include "supervisor/daemon/report.hpp"
 #include "supervisor/daemon/stability_guard.hpp"
 #include "supervisor/daemon/status_builder.hpp"
@@ -71,6 +72,11 @@ struct NodeView {
   bool have_position{false};
   std::int64_t oscillating_since_ns{0};
   std::int64_t active_since_ns{0};
+  // Parameters in force that the supervisor did not approve (change number and fields), and
+  // when it last e-stopped the nodes for them.
+  std::string unapproved{};
+  std::int64_t unapproved_estop_ns{0};
+  std::uint64_t newest_change_seen{0};  // this session's
 };
 
 }  // namespace
@@ -80,6 +86,8 @@ struct SupervisorApp::Impl {
       : loaded(config),
         params(config::to_teleop_params(config)),
         guard(params),
+        audit(ApprovedParameters{params.gains, params.master_fixture.stiffness_N_per_m,
+                                 params.slave_fixture.stiffness_N_per_m}),
         opts(std::move(options)),
         master_setup(config::to_node_setup(config, transport::Role::kMaster)),
         slave_setup(config::to_node_setup(config, transport::Role::kSlave)) {
@@ -258,7 +266,9 @@ struct SupervisorApp::Impl {
       reply.set_reason("refused: both nodes must be running to apply a change");
       return reply;
     }
-    const std::uint64_t id = change_id + 1;
+    // Never a number sent before, even one whose change a node refused: a reused number
+    // could not be told apart in the nodes' telemetry.
+    const std::uint64_t id = std::max(change_id, last_sent_change_id) + 1;
     const std::uint64_t at =
         master_sequence() + static_cast<std::uint64_t>(std::lround(0.2 * params.sample_rate_hz));
     v1::NodeCommand c;
@@ -272,6 +282,10 @@ struct SupervisorApp::Impl {
     u->set_slave_fixture_position_m(params.slave_fixture.position_m);
     u->set_apply_at_master_sequence(at);
     u->set_ramp_ms(change_ramp_ms);
+    // Approved before it is sent: the nodes may apply it before this thread hears back.
+    audit.approve(id, ApprovedParameters{d.proposed.gains, d.proposed.master_fixture_N_per_m,
+                                         d.proposed.slave_fixture_N_per_m});
+    last_sent_change_id = id;
     for (const config::NodeSetup* n : {&master_setup, &slave_setup}) {
       const auto r = command(*n, c);
       if (!r || !r->ok()) {
@@ -300,6 +314,8 @@ struct SupervisorApp::Impl {
       n.oscillation->clear();
       n.passivity->reset();
       n.summary->reset();
+      n.newest_change_seen = 0;
+      n.unapproved.clear();
     }
     n.session_id = t.session_id();
     if (n.mode != t.mode() && (t.mode() == v1::SAFE || t.mode() == v1::FAULT)) {
@@ -313,6 +329,8 @@ struct SupervisorApp::Impl {
     }
     n.last = t;
     n.last_received_ns = now;
+    // After the master's first message: a change in force on running nodes is adopted then.
+    if (heard_master) audit_parameters(n, t, now);
     for (const v1::CycleRecord& c : t.cycles()) {
       n.cycle_times.push_back(c.sample_time_ns());
       while (n.cycle_times.size() > 2000) n.cycle_times.pop_front();
@@ -320,6 +338,48 @@ struct SupervisorApp::Impl {
     }
     n.summary->add(t, now);
     record(is_master ? "/master/telemetry" : "/slave/telemetry", t);
+  }
+
+  // Any parameter in force that this supervisor did not approve (a RETUNE that reached a node
+  // some other way): CRITICAL, and both nodes e-stopped. Not only disengaged: whoever retuned
+  // the node can arm and engage it again, and nothing known-good is in force; the e-stop holds
+  // until an operator clears it, and is repeated while the values stay (a guarded change,
+  // `teleopctl set`, puts approved values in force).
+  void audit_parameters(NodeView& n, const v1::Telemetry& t, std::int64_t now) {
+    if (!t.has_active()) return;
+    const std::vector<ParameterMismatch> mismatches = audit.check(t.active(), n.newest_change_seen);
+    n.newest_change_seen = std::max(n.newest_change_seen, t.active().change_id());
+    if (mismatches.empty()) {
+      n.unapproved.clear();
+      return;
+    }
+    const std::string what = describe(mismatches);
+    // Announced once per change number and set of fields (a ramp's values move every cycle).
+    std::string key = std::to_string(t.active().change_id());
+    for (const ParameterMismatch& m : mismatches) key += " " + m.field;
+    const bool found_now = key != n.unapproved;
+    const bool may_move = t.mode() != v1::SAFE && t.mode() != v1::FAULT;
+    const bool stop = may_move && now - n.unapproved_estop_ns >= 100'000'000;
+    if (!found_now && !stop) return;
+    n.unapproved = key;
+    std::string action;
+    if (stop) {
+      n.unapproved_estop_ns = now;
+      v1::NodeCommand c;
+      c.set_kind(v1::NodeCommand::ESTOP);
+      const auto rm = command(master_setup, c);
+      const auto rs = command(slave_setup, c);
+      action = fmt::format("e-stopped both nodes (master {}, slave {})",
+                           rm ? v1::NodeMode_Name(rm->mode()) : std::string("NO REPLY"),
+                           rs ? v1::NodeMode_Name(rs->mode()) : std::string("NO REPLY"));
+    }
+    std::vector<std::tuple<std::string, double, std::string>> evidence;
+    for (const ParameterMismatch& m : mismatches) {
+      evidence.emplace_back(m.field + " in force", m.in_force, "");
+      evidence.emplace_back(m.field + " approved", m.approved, "");
+    }
+    alarm(v1::Alarm::CRITICAL, "unapproved_parameters", n.name,
+          "parameters in force that the supervisor did not approve: " + what, evidence, action);
   }
 
   // A supervisor started (or restarted) while the nodes run: what they run is what counts.
@@ -331,6 +391,10 @@ struct SupervisorApp::Impl {
     const v1::ActiveParameters& a = t.active();
     if (t.has_active() && a.change_id() > change_id) {
       change_id = a.change_id();
+      last_sent_change_id = std::max(last_sent_change_id, change_id);
+      audit.adopt(change_id,
+                  ApprovedParameters{from_proto(a.gains()), a.master_fixture_stiffness_n_per_m(),
+                                     a.slave_fixture_stiffness_n_per_m()});
       live.gains = from_proto(a.gains());
       live.master_fixture_N_per_m = a.master_fixture_stiffness_n_per_m();
       live.slave_fixture_N_per_m = a.slave_fixture_stiffness_n_per_m();
@@ -864,6 +928,7 @@ struct SupervisorApp::Impl {
   config::LoadedConfig loaded;
   TeleopParams params;
   StabilityGuard guard;
+  ParameterAudit audit;
   SupervisorOptions opts;
   config::NodeSetup master_setup;
   config::NodeSetup slave_setup;
@@ -890,6 +955,7 @@ struct SupervisorApp::Impl {
   bool lowering_pending{false};
   std::int64_t last_lowering_try_ns{0};
   std::uint64_t change_id{0};
+  std::uint64_t last_sent_change_id{0};  // the newest change number sent, taken or not
   v1::StabilityReport report{};
   std::deque<v1::Alarm> recent_alarms{};
   std::map<std::string, std::int64_t> last_alarm_ns{};
