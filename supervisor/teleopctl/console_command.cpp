@@ -18,6 +18,8 @@
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/console_view.hpp"
+#include "supervisor/teleopctl/estop_fanout.hpp"
+#include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
 
@@ -167,12 +169,9 @@ class Console {
   }
 
   // One request to the supervisor, bounded by `timeout_ms` (each request's own default) or by
-  // --timeout-ms when given; an e-stop waits at most 1 s before going to the nodes directly.
+  // --timeout-ms when given. (The e-stop does not come here: estop().)
   std::optional<v1::SupervisorReply> request(const v1::SupervisorRequest& req, int timeout_ms) {
     if (a_.sup.timeout_given) timeout_ms = a_.sup.timeout_ms;
-    if (req.has_node_command() && req.node_command().kind() == v1::NodeCommand::ESTOP) {
-      timeout_ms = std::min(timeout_ms, 1000);
-    }
     try {
       return supervisor_request(a_.sup.endpoint, req, timeout_ms, a_.sup.key, a_.sup.server_key);
     } catch (const std::exception& e) {
@@ -334,43 +333,23 @@ class Console {
     }
   }
 
+  // Straight to both nodes at once, the supervisor told in the same instant but never
+  // waited for (estop_fanout.hpp); each node bounded by --timeout-ms or 500 ms.
   void estop() {
-    v1::SupervisorRequest req;
-    req.mutable_node_command()->set_kind(v1::NodeCommand::ESTOP);
-    req.mutable_node_command()->set_target("both");
-    req.mutable_node_command()->set_requested_by("console");
-    const auto r = request(req, 1000);
-    bool confirmed = false;
-    std::string text;
-    if (r && r->error().empty() && r->node_command().outcomes_size() == 2) {
-      confirmed = true;
-      for (const v1::NodeCommandOutcome& o : r->node_command().outcomes()) {
-        confirmed = confirmed && o.replied() &&
-                    (o.reply().mode() == v1::SAFE || o.reply().mode() == v1::FAULT);
-      }
-      text = outcome_text(r->node_command());
+    const int timeout_ms = a_.sup.timeout_given ? a_.sup.timeout_ms : 500;
+    const EstopResult r = estop_everywhere(
+        {{"master", master_command_, master_keys_}, {"slave", slave_command_, slave_keys_}},
+        SupervisorTarget{a_.sup.endpoint, a_.sup.server_key.empty() ? "" : a_.sup.key,
+                         a_.sup.server_key},
+        "console", timeout_ms);
+    std::string sup_text = "supervisor told";
+    if (!r.supervisor_error.empty()) {
+      sup_text = "supervisor not told (" + r.supervisor_error + ")";
+    } else if (!r.supervisor) {
+      sup_text += ", no reply yet";
     }
-    if (!confirmed) {
-      // The supervisor did not confirm both: straight to the nodes, each on its own.
-      text = (r ? "not confirmed through the supervisor" : "the supervisor did not answer") +
-             std::string("; sent to the nodes directly: ");
-      confirmed = true;
-      for (const auto& [name, endpoint, keys] :
-           {std::tuple{"master", master_command_, master_keys_},
-            std::tuple{"slave", slave_command_, slave_keys_}}) {
-        std::optional<v1::NodeCommandReply> reply;
-        try {
-          reply = send_node_command(endpoint, v1::NodeCommand::ESTOP, keys, 1000);
-        } catch (const std::exception&) {
-        }
-        const bool safe = reply && (reply->mode() == v1::SAFE || reply->mode() == v1::FAULT);
-        confirmed = confirmed && safe;
-        text += fmt::format("{}{} {}", name == std::string("master") ? "" : ", ", name,
-                            reply ? v1::NodeMode_Name(reply->mode()) : std::string("NO REPLY"));
-      }
-    }
-    say("E-STOP: " + text +
-        (confirmed ? " -- both nodes confirmed safe" : " -- NOT CONFIRMED: check the nodes"));
+    say("E-STOP: sent to the nodes directly: " + r.nodes_text() + "; " + sup_text +
+        (r.all_safe() ? " -- both nodes confirmed safe" : " -- NOT CONFIRMED: check the nodes"));
   }
 
   void predict(const std::string& line) {
@@ -536,6 +515,24 @@ class Console {
   std::vector<std::pair<std::string, double>> settings_{};
 };
 
+// No key given and a configuration without keys (or none): a live `teleopctl launch` that
+// serves this supervisor endpoint lends its configuration and console key.
+void use_local_launch(ConsoleArgs& a) {
+  if (!a.sup.key.empty() || a.replay) return;
+  std::string endpoint = a.sup.endpoint;
+  if (!a.config_path.empty()) {
+    const config::LoadedConfig c = config::load_config_file(a.config_path);
+    if (!config_has_no_keys(c.config)) return;
+    if (!a.sup.endpoint_given && !c.config.supervisor().request_endpoint().empty()) {
+      endpoint = c.config.supervisor().request_endpoint();
+    }
+  }
+  if (const auto l = find_local_launch(endpoint)) {
+    a.config_path = l->config_file.string();
+    a.sup.key = l->console_key_file;
+  }
+}
+
 }  // namespace
 
 std::string console_usage() {
@@ -547,7 +544,7 @@ std::string console_usage() {
          "the supervisor's summary stream (topic \"status\" on its report endpoint, default\n"
          "127.0.0.1:5566, ten times a second; redrawn at most --refresh-hz, default 10) and\n"
          "sends commands through its request endpoint (default 127.0.0.1:5567): x e-stop (to\n"
-         "the nodes directly if the supervisor does not answer), a arm, e engage, d disengage,\n"
+         "both nodes directly at once, the supervisor told too), a arm, e engage, d disengage,\n"
          "c clutch, u unclutch, l clear, s set a gain or fixture stiffness (the supervisor's\n"
          "prediction first, y applies), r start/stop recording, ? help, q quit. With CONFIG\n"
          "the endpoints and keys come from it (supervisor section, security\n"
@@ -555,7 +552,9 @@ std::string console_usage() {
          "public key the supervisor must list in security.client_public_keys, or in\n"
          "security.read_only_client_public_keys for a console that may only watch and e-stop.\n"
          "--read-only makes this console read-only whatever its key. --timeout-ms bounds\n"
-         "each request to the supervisor (an e-stop's at most 1 s, then the nodes directly).\n"
+         "each request to the supervisor and an e-stop's wait for each node (default 500 ms).\n"
+         "Without CONFIG keys or --key: the keys of a live `teleopctl launch` on these\n"
+         "endpoints, if any.\n"
          "--replay watches `teleopctl replay FILE --speed X` (control default 127.0.0.1:5568):\n"
          "space pause/resume, , . seek 5 s, < > 30 s, [ ] speed, 0 start, g go to.\n"
          "Without a terminal use teleopctl status, set and estop.\n";
@@ -591,6 +590,7 @@ int run_console(const std::vector<std::string>& args, std::ostream& out, std::os
     }
   }
   return run_guarded("console", err, [&]() -> int {
+    use_local_launch(a);
     std::string master_command = config::default_endpoints(transport::Role::kMaster).command;
     std::string slave_command = config::default_endpoints(transport::Role::kSlave).command;
     NodeClientKeys master_keys;

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <memory>
 #include <thread>
 #include <zmq.hpp>
 
@@ -20,6 +21,7 @@
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/launch_isolation.hpp"
+#include "supervisor/teleopctl/local_launch.hpp"
 
 namespace teleop::ctl {
 namespace {
@@ -111,6 +113,50 @@ std::string launch_reply_problem(v1::NodeCommand::Kind kind,
   return command_refusal(kind, *reply);
 }
 
+// The keys of a live `teleopctl launch` (local_launch.hpp) for the node at `endpoint`; none
+// when no launch serves it.
+NodeClientKeys local_launch_keys(const std::string& endpoint) {
+  const auto l = find_local_launch(endpoint);
+  if (!l) return {};
+  const v1::Security& s = l->config.config.security();
+  const bool master =
+      config::to_node_setup(l->config, transport::Role::kMaster).endpoints.command == endpoint;
+  const bool slave =
+      config::to_node_setup(l->config, transport::Role::kSlave).endpoints.command == endpoint;
+  if (!master && !slave) return {};
+  return {l->console_key_file, master ? s.master_public_key() : s.slave_public_key()};
+}
+
+// A configuration without keys of its own gets ephemeral ones (local_launch.hpp): their
+// overrides are appended to `overrides` (what the processes are started with), `loaded` is
+// reloaded with them and the configuration in force is published for the local clients.
+std::unique_ptr<LaunchKeys> generate_launch_keys(const std::string& config_path,
+                                                 std::vector<std::string>& overrides,
+                                                 config::LoadedConfig& loaded) {
+  if (!config_has_no_keys(loaded.config)) return nullptr;
+  auto keys = std::make_unique<LaunchKeys>();
+  for (const std::string& o : keys->overrides()) overrides.push_back(o);
+  loaded = config::load_config_file(config_path, overrides);
+  keys->publish(loaded.config);
+  return keys;
+}
+
+// The launch's own client keys for one node (its console key); none without launch keys.
+NodeClientKeys launch_client_keys(const LaunchKeys* keys, bool master) {
+  if (!keys) return {};
+  return {keys->console_key_file(), master ? keys->master_public() : keys->slave_public()};
+}
+
+// CURVE on a client socket when `keys` has any.
+void secure_client_socket(zmq::context_t& ctx, zmq::socket_t& s, const std::string& endpoint,
+                          const NodeClientKeys& keys) {
+  if (keys.secret_key_file.empty()) return;
+  transport::LinkSecurity sec;
+  sec.own = transport::load_secret_key_file(keys.secret_key_file);
+  sec.server_public_key = transport::load_public_key(keys.server_key);
+  (void)transport::apply_link_security(ctx, s, endpoint, transport::LinkRole::kClient, sec);
+}
+
 }  // namespace
 
 std::string to_endpoint(const std::string& address) {
@@ -146,7 +192,8 @@ std::string node_usage() {
          "reached. COMMAND: arm, engage, disengage, clutch, unclutch, clear, estop, status,\n"
          "shutdown. Off loopback the node requires CURVE: --key is this client's key file\n"
          "(teleopctl keygen; its public key must be in the configuration's\n"
-         "security.client_public_keys) and --server-key the node's public key.\n"
+         "security.client_public_keys) and --server-key the node's public key. Without either,\n"
+         "the keys of a live `teleopctl launch` whose node is at HOST:PORT, if any.\n"
          "Exit: 0 taken (the node reached the mode the command asks for), 1 error, 2 usage,\n"
          "3 refused by the node (its mode and reason printed: e.g. engage on a SAFE node),\n"
          "4 no reply.\n";
@@ -176,6 +223,7 @@ int run_node_command(const std::vector<std::string>& args, std::ostream& out, st
   if (it == command_names().end()) throw UsageError("unknown command '" + positional[1] + "'");
   return run_guarded("node", err, [&] {
     const std::string endpoint = to_endpoint(positional[0]);
+    if (keys.secret_key_file.empty() && keys.server_key.empty()) keys = local_launch_keys(endpoint);
     const auto reply = send_node_command(endpoint, it->second, keys, timeout_ms);
     if (!reply) {
       err << "teleopctl node: no reply from " << endpoint << " within " << timeout_ms
@@ -207,7 +255,13 @@ std::string launch_usage() {
          "every port of CONFIG, given or default, moves up by 10*N (instance 1: nodes\n"
          "5570-5575, supervisor 5576/5577) and the default record directory is\n"
          "./sessions/instance-N. Launch prints the endpoints; address them as usual, e.g.\n"
-         "'teleopctl status --supervisor 127.0.0.1:5577', 'teleopctl node 127.0.0.1:5572 estop'.\n";
+         "'teleopctl status --supervisor 127.0.0.1:5577', 'teleopctl node 127.0.0.1:5572 estop'.\n"
+         "\n"
+         "When CONFIG names no keys, the launch generates CURVE keys for the master, the slave,\n"
+         "the supervisor and the local console, so even loopback is authenticated; they live in\n"
+         "$TELEOP_RUNTIME_DIR, $XDG_RUNTIME_DIR/teleop or /tmp/teleop-UID (launch-PID, mode\n"
+         "0700), where teleopctl console, status, set, estop and node find them without flags,\n"
+         "and are removed when the launch ends.\n";
 }
 
 int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -266,6 +320,16 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
       loaded = config::load_config_file(config_path, overrides);
       if (!record_dir_given) record_dir = record_dir + "/instance-" + std::to_string(instance);
     }
+    // Secure by default: keys of its own for a configuration without any (local_launch.hpp).
+    const std::unique_ptr<LaunchKeys> launch_keys =
+        generate_launch_keys(config_path, overrides, loaded);
+    if (launch_keys) {
+      out << "CURVE keys generated for this launch in " << launch_keys->dir().string()
+          << " (removed when it ends; teleopctl console, status, set, estop and node find them)"
+          << std::endl;
+    }
+    const NodeClientKeys master_client = launch_client_keys(launch_keys.get(), true);
+    const NodeClientKeys slave_client = launch_client_keys(launch_keys.get(), false);
     const config::NodeSetup master = config::to_node_setup(loaded, transport::Role::kMaster);
     const config::NodeSetup slave = config::to_node_setup(loaded, transport::Role::kSlave);
     for (const std::string& e : {master.endpoints.state, slave.endpoints.state,
@@ -319,21 +383,28 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     std::uint64_t master_session = 0;
     std::uint64_t slave_session = 0;
     {
-      const NodeClientKeys none;
       std::vector<LaunchedProcess> own;
-      auto add = [&](const std::string& name, pid_t pid, const std::string& endpoint, bool sup) {
+      auto add = [&](const std::string& name, pid_t pid, const std::string& endpoint, bool sup,
+                     const NodeClientKeys& keys) {
         LaunchedProcess lp;
         lp.name = name;
         lp.pid = pid;
         lp.endpoint = endpoint;
         lp.supervisor = sup;
-        lp.keys = none;
+        lp.keys = keys;
         own.push_back(lp);
       };
-      add("teleop-master", master_pid, master.endpoints.command, false);
-      add("teleop-slave", slave_pid, slave.endpoints.command, false);
+      add("teleop-master", master_pid, master.endpoints.command, false, master_client);
+      add("teleop-slave", slave_pid, slave.endpoints.command, false, slave_client);
       if (supervise) {
-        add("teleop-supervisor", supervisor_pid, supervisor_request_endpoint(loaded), true);
+        // The supervisor with the launch's console key and its public key (launch keys).
+        NodeClientKeys supervisor_client;
+        if (launch_keys) {
+          supervisor_client = {launch_keys->console_key_file(),
+                               loaded.config.security().supervisor_public_key()};
+        }
+        add("teleop-supervisor", supervisor_pid, supervisor_request_endpoint(loaded), true,
+            supervisor_client);
       }
       const std::string why = confirm_own_processes(own, 10000);
       if (!why.empty()) {
@@ -355,16 +426,17 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     }
 
     zmq::context_t ctx(1);
-    auto subscribe = [&](const std::string& endpoint) {
+    auto subscribe = [&](const std::string& endpoint, const NodeClientKeys& keys) {
       zmq::socket_t s(ctx, zmq::socket_type::sub);
       s.set(zmq::sockopt::linger, 0);
       s.set(zmq::sockopt::conflate, 1);
+      secure_client_socket(ctx, s, endpoint, keys);
       s.set(zmq::sockopt::subscribe, "");
       s.connect(endpoint);
       return s;
     };
-    zmq::socket_t master_tel = subscribe(master.endpoints.telemetry);
-    zmq::socket_t slave_tel = subscribe(slave.endpoints.telemetry);
+    zmq::socket_t master_tel = subscribe(master.endpoints.telemetry, master_client);
+    zmq::socket_t slave_tel = subscribe(slave.endpoints.telemetry, slave_client);
     std::optional<v1::Telemetry> mt;
     std::optional<v1::Telemetry> st;
     // Only the telemetry of the nodes this launch started (their session ids, confirmed).
@@ -410,11 +482,11 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     out << "master and slave linked: master session " << fmt::format("{:016x}", mt->session_id())
         << ", slave session " << fmt::format("{:016x}", st->session_id()) << "\n";
     if (engage) {
-      const NodeClientKeys none;
       for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
-        for (const auto& [e, pid] : {std::pair{master.endpoints.command, master_pid},
-                                     std::pair{slave.endpoints.command, slave_pid}}) {
-          const auto reply = send_node_command(e, kind, none, 2000);
+        for (const auto& [e, pid, keys] :
+             {std::tuple{master.endpoints.command, master_pid, master_client},
+              std::tuple{slave.endpoints.command, slave_pid, slave_client}}) {
+          const auto reply = send_node_command(e, kind, keys, 2000);
           const std::string why = launch_reply_problem(kind, reply, pid);
           if (!why.empty()) {
             err << "teleopctl launch: " << v1::NodeCommand::Kind_Name(kind) << " " << e << ": "

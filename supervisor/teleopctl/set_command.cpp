@@ -8,6 +8,7 @@
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
 
 namespace teleop::ctl {
@@ -46,6 +47,14 @@ bool SupervisorClientFlags::take(ArgCursor& cur) {
     return false;
   }
   return true;
+}
+
+void SupervisorClientFlags::use_local_launch_keys() {
+  if (!key.empty() || !server_key.empty()) return;
+  if (const auto l = find_local_launch(endpoint)) {
+    key = l->console_key_file;
+    server_key = l->config.config.security().supervisor_public_key();
+  }
 }
 
 std::pair<std::string, double> parse_setting(const std::string& text) {
@@ -115,6 +124,7 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   }
   if (sets.empty()) throw UsageError("nothing to set");
   return run_guarded("set", err, [&]() -> int {
+    sup.use_local_launch_keys();
     // The gains in force, so that a change of one gain keeps the others.
     v1::SupervisorRequest status;
     status.mutable_status();

@@ -35,6 +35,9 @@ struct SupervisorClientFlags {
   bool timeout_given{false};   // --timeout-ms was on the command line
   // Takes the cursor's current flag (and its value) if it is one of these; false otherwise.
   bool take(ArgCursor& cur);
+  // Neither --key nor --server-key: the keys of a live `teleopctl launch` whose supervisor
+  // is at `endpoint` (local_launch.hpp), if there is one.
+  void use_local_launch_keys();
 };
 
 // One request to the supervisor; nullopt when no reply came within timeout_ms.

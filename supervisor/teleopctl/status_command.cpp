@@ -6,6 +6,8 @@
 #include "common/config/config_loader.hpp"
 #include "common/config/node_loader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/estop_fanout.hpp"
+#include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
 
@@ -13,21 +15,29 @@ namespace teleop::ctl {
 
 std::string estop_usage() {
   return "usage: teleopctl estop [CONFIG] [--master HOST:PORT] [--slave HOST:PORT] [--key FILE]\n"
-         "                      [--timeout-ms N]\n\n"
-         "E-stop to both nodes, each directly on its command endpoint (from CONFIG, the flags,\n"
-         "or the loopback defaults 5562 and 5563), and the mode each confirms. With CONFIG's\n"
-         "security keys, --key is this client's key file. Exit 0 when both confirm safe, 3 when\n"
-         "a node answered otherwise, 4 when a node did not answer.\n";
+         "                      [--supervisor HOST:PORT | --no-supervisor] [--timeout-ms N]\n\n"
+         "E-stop to both nodes at once, each directly on its command endpoint (from CONFIG, the\n"
+         "flags, or the loopback defaults 5562 and 5563), and the mode each confirms; the\n"
+         "supervisor (CONFIG's request endpoint, --supervisor, or 127.0.0.1:5567) is told in the\n"
+         "same instant but never waited for. Each node's reply is awaited for --timeout-ms\n"
+         "(default 500), all together: an unreachable node never delays the other. With CONFIG's\n"
+         "security keys, --key is this client's key file (a read-only console key will do for an\n"
+         "e-stop); without --key, the keys of a live `teleopctl launch` on these endpoints. Exit\n"
+         "0 when both confirm safe, 3 when a node answered otherwise, 4 when a node did not\n"
+         "answer (each named).\n";
 }
 
 int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::string config_path;
   std::string master = "tcp://127.0.0.1:5562";
   std::string slave = "tcp://127.0.0.1:5563";
+  std::string supervisor = "tcp://127.0.0.1:5567";
   std::string key;
-  int timeout_ms = 2000;
+  int timeout_ms = 500;
   bool master_set = false;
   bool slave_set = false;
+  bool supervisor_set = false;
+  bool tell_supervisor = true;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
@@ -37,6 +47,11 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
     } else if (a == "--slave") {
       slave = to_endpoint(cur.value("--slave"));
       slave_set = true;
+    } else if (a == "--supervisor") {
+      supervisor = to_endpoint(cur.value("--supervisor"));
+      supervisor_set = true;
+    } else if (a == "--no-supervisor") {
+      tell_supervisor = false;
     } else if (a == "--key") {
       key = cur.value("--key");
     } else if (a == "--timeout-ms") {
@@ -50,32 +65,73 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
     }
   }
   return run_guarded("estop", err, [&]() -> int {
-    NodeClientKeys master_keys;
-    NodeClientKeys slave_keys;
-    if (!config_path.empty()) {
-      const config::LoadedConfig c = config::load_config_file(config_path);
-      if (!master_set)
-        master = config::to_node_setup(c, transport::Role::kMaster).endpoints.command;
-      if (!slave_set) slave = config::to_node_setup(c, transport::Role::kSlave).endpoints.command;
-      if (!key.empty()) {
-        master_keys = {key, c.config.security().master_public_key()};
-        slave_keys = {key, c.config.security().slave_public_key()};
+    std::optional<config::LoadedConfig> c;
+    if (!config_path.empty()) c = config::load_config_file(config_path);
+    if (key.empty() && (!c || config_has_no_keys(c->config))) {
+      // A local launch's keys, when one serves the node addressed.
+      const std::string target =
+          master_set || !c ? master
+                           : config::to_node_setup(*c, transport::Role::kMaster).endpoints.command;
+      if (auto l = find_local_launch(target)) {
+        c = std::move(l->config);
+        key = l->console_key_file;
       }
     }
-    int rc = kExitOk;
-    // Both are sent whatever the first answers: an e-stop never waits on the other node.
-    for (const auto& [name, endpoint, keys] :
-         {std::tuple{"master", master, master_keys}, std::tuple{"slave", slave, slave_keys}}) {
-      const auto reply = send_node_command(endpoint, v1::NodeCommand::ESTOP, keys, timeout_ms);
-      if (!reply) {
-        out << name << " " << endpoint << ": NO REPLY within " << timeout_ms << " ms\n";
-        rc = kExitNoReply;
-        continue;
+    std::vector<EstopTarget> targets{{"master", master, {}}, {"slave", slave, {}}};
+    std::optional<SupervisorTarget> sup;
+    if (tell_supervisor) sup = SupervisorTarget{supervisor, key, ""};
+    if (c) {
+      if (!master_set) {
+        targets[0].endpoint = config::to_node_setup(*c, transport::Role::kMaster).endpoints.command;
       }
-      const bool safe = reply->mode() == v1::SAFE || reply->mode() == v1::FAULT;
-      out << name << " " << endpoint << ": " << v1::NodeMode_Name(reply->mode()) << " ("
-          << reply->mode_reason() << ")\n";
-      if (!safe && rc == kExitOk) rc = kExitRefused;
+      if (!slave_set) {
+        targets[1].endpoint = config::to_node_setup(*c, transport::Role::kSlave).endpoints.command;
+      }
+      const v1::Security& s = c->config.security();
+      if (!key.empty()) {
+        targets[0].keys = {key, s.master_public_key()};
+        targets[1].keys = {key, s.slave_public_key()};
+      }
+      if (sup) {
+        if (!supervisor_set && !c->config.supervisor().request_endpoint().empty()) {
+          sup->endpoint = c->config.supervisor().request_endpoint();
+        }
+        if (!key.empty()) sup->server_key = s.supervisor_public_key();
+      }
+    }
+    // A client key without the supervisor's public key cannot be used with it: plaintext then.
+    if (sup && sup->server_key.empty()) sup->key_file.clear();
+    const EstopResult r = estop_everywhere(targets, sup, "teleopctl estop", timeout_ms);
+    // The instant on this host's monotonic clock, the nodes' too: compare with their telemetry.
+    out << fmt::format("e-stop sent at CLOCK_MONOTONIC {}.{:09d} s to both nodes{}\n",
+                       r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL,
+                       sup ? " and the supervisor" : "");
+    int rc = kExitOk;
+    for (const EstopOutcome& o : r.nodes) {
+      if (!o.error.empty()) {
+        out << o.name << " " << o.endpoint << ": NOT SENT: " << o.error << "\n";
+        rc = kExitNoReply;
+      } else if (!o.reply) {
+        out << o.name << " " << o.endpoint << ": NO REPLY within " << timeout_ms << " ms\n";
+        rc = kExitNoReply;
+      } else {
+        out << o.name << " " << o.endpoint << ": " << v1::NodeMode_Name(o.reply->mode()) << " ("
+            << o.reply->mode_reason() << ") in "
+            << fmt::format("{:.1f}", static_cast<double>(o.reply_ns) * 1e-6) << " ms\n";
+        if (!o.safe() && rc == kExitOk) rc = kExitRefused;
+      }
+    }
+    if (sup) {
+      out << "supervisor " << sup->endpoint << ": ";
+      if (!r.supervisor_error.empty()) {
+        out << "not told: " << r.supervisor_error << "\n";
+      } else if (!r.supervisor) {
+        out << "told, no reply while the nodes answered (not waited for)\n";
+      } else if (!r.supervisor->error().empty()) {
+        out << "told, answered: " << r.supervisor->error() << "\n";
+      } else {
+        out << "told, confirmed\n";
+      }
     }
     return rc;
   });
@@ -106,6 +162,7 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
     }
   }
   return run_guarded("status", err, [&]() -> int {
+    sup.use_local_launch_keys();
     v1::SupervisorRequest req;
     req.mutable_status();
     const auto reply =
