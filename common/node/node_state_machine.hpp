@@ -40,6 +40,10 @@ struct CycleInputs {
   bool peer_failed{false};
   // The peer left coupling by command (disarmed or armed): coupling ends in armed.
   bool peer_disengaged{false};
+  // Why arm and engage are refused now (README "Before engage": the configuration's own
+  // analysis, the peer's configuration fingerprint or parameter change); nullptr: permitted.
+  // A static string (or one that outlives the machine).
+  const char* coupling_refusal{nullptr};
 };
 
 struct CycleOutputs {
@@ -48,6 +52,7 @@ struct CycleOutputs {
   bool centring{false};         // aligning: the weak centring force guides the operator
   bool actuators_enabled{false};
   const char* reason{""};  // why the last transition happened (static string)
+  bool refused{false};     // this cycle's command was refused by coupling_refusal
 };
 
 class NodeStateMachine {
