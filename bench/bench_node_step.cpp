@@ -41,6 +41,7 @@ node::NodeSettings settings(Role role) {
   s.period = 1ms;
   s.law = law();
   s.session_id = role == Role::kMaster ? 11 : 22;
+  s.config_fingerprint = 0x5eed;  // the same configuration on both sides
   return s;
 }
 

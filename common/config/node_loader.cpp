@@ -3,6 +3,7 @@
 #include <cmath>
 #include <string>
 
+#include "common/config/control_fingerprint.hpp"
 #include "common/config/scene_loader.hpp"
 
 namespace teleop::config {
@@ -237,7 +238,11 @@ NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
   }
   // Both sides' sections are checked by either node: one file, one verdict.
   (void)one_node_setup(config, role == Role::kMaster ? Role::kSlave : Role::kMaster);
-  return one_node_setup(config, role);
+  NodeSetup out = one_node_setup(config, role);
+  // README "Before engage": what the peer and the supervisor compare before coupling.
+  out.settings.config_fingerprint = fingerprint(control_fields(
+      to_teleop_params(config), out.settings, config.config.experiment().allow_unstable()));
+  return out;
 }
 
 }  // namespace teleop::config

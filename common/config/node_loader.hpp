@@ -3,10 +3,12 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "common/config/config_loader.hpp"
+#include "common/config/control_fingerprint.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/node/node_core.hpp"
@@ -51,6 +53,9 @@ struct NodeSetup {
   rt::RtSettings rt{};
   int cpu_dma_latency_us{10};  // -1: leave alone
   double telemetry_rate_hz{50.0};
+  // The node's own check of its configuration at start (control_fingerprint.hpp), filled by
+  // the node process; reported in telemetry.
+  std::optional<ConfigurationCheck> check{};
 };
 
 // Default endpoints (loopback): master state 5560, slave state 5561, commands 5562/5563,

@@ -96,6 +96,29 @@ void NodeCore::apply_retune(std::chrono::nanoseconds now, std::uint64_t master_s
   active_out_.write(active_);
 }
 
+const char* NodeCore::coupling_refusal() const noexcept {
+  if (!settings_.permits_coupling) {
+    return settings_.coupling_refusal.empty()
+               ? "arm and engage refused: the configuration check at start failed"
+               : settings_.coupling_refusal.c_str();
+  }
+  if (!have_peer_) {
+    return "arm and engage refused: no state from the peer yet (its configuration fingerprint "
+           "is unknown)";
+  }
+  if (peer_.state.config_fingerprint == 0) {
+    return "arm and engage refused: the peer sends no configuration fingerprint (an older "
+           "version?)";
+  }
+  if (peer_.state.config_fingerprint != settings_.config_fingerprint) {
+    return "arm and engage refused: configuration fingerprint differs from the peer's";
+  }
+  if (peer_.state.parameter_change_id != active_.change_id) {
+    return "arm and engage refused: the peer runs another parameter change";
+  }
+  return nullptr;
+}
+
 bool NodeCore::post_command(Command command) noexcept {
   if (!commands_in_.try_push(command)) return false;
   commands_posted_.fetch_add(1, std::memory_order_acq_rel);
@@ -209,6 +232,8 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
     }
     peer_ = incoming;
     have_peer_ = true;
+    peer_fingerprint_.store(incoming.state.config_fingerprint, std::memory_order_release);
+    peer_change_id_.store(incoming.state.parameter_change_id, std::memory_order_release);
     if (incoming.state.last_peer_sequence != 0) {
       const auto rtt = round_trip_.echoed(incoming.state.last_peer_sequence,
                                           std::chrono::nanoseconds(incoming.state.peer_age_ns),
@@ -249,7 +274,9 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
   in.peer_failed = have_peer_ && (peer_down(peer_.state.mode) || peer_restarted_);
   in.peer_disengaged = have_peer_ && !peer_coupling(peer_.state.mode) && !in.peer_failed;
   in.own_stall = own_stall;
+  in.coupling_refusal = coupling_refusal();
   const CycleOutputs out = machine_.step(in);
+  if (out.refused) coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
   const Mode mode = out.mode;
 
   if (mode != last_mode_) {
@@ -334,6 +361,9 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
     state.fixture_force_N = fixture.stiffness_N_per_m * state.fixture_penetration_m;
   }
   state.fault_flags = flags;
+  state.config_fingerprint = settings_.config_fingerprint;
+  state.parameter_change_id = active_.change_id;
+  active_change_id_.store(active_.change_id, std::memory_order_release);
   round_trip_.sent(sequence_, now);
   state_out_.write(state);
   published_.fetch_add(1, std::memory_order_release);

@@ -33,6 +33,7 @@
 #include <chrono>
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include "common/control/law_params.hpp"
 #include "common/control/master_law.hpp"
@@ -63,6 +64,14 @@ struct NodeSettings {
   std::chrono::nanoseconds safe_ramp{std::chrono::milliseconds{10}};
   AlignmentParams alignment{};
   std::uint64_t session_id{1};
+  // README "Before engage": the fingerprint of this node's control-relevant configuration
+  // (config::control_fingerprint; sent to the peer every cycle), and the node's own check of
+  // its configuration at start. Arm and engage are refused while the peer's fingerprint or
+  // parameter change differs, the peer sent none yet, or `permits_coupling` is false (then
+  // with `coupling_refusal` as the reason, naming the verdict and the damping ratio).
+  std::uint64_t config_fingerprint{0};
+  bool permits_coupling{true};
+  std::string coupling_refusal{};
 };
 
 // A peer state as the link thread accepted it, with its arrival on the monotonic clock.
@@ -191,6 +200,20 @@ class NodeCore {
     return reason_.load(std::memory_order_acquire);
   }
   [[nodiscard]] const NodeSettings& settings() const noexcept { return settings_; }
+  // README "Before engage": the newest peer state's fingerprint and parameter change (0: none
+  // yet), and how many arm or engage commands the configuration checks refused (any thread).
+  [[nodiscard]] std::uint64_t peer_fingerprint() const noexcept {
+    return peer_fingerprint_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] std::uint64_t peer_change_id() const noexcept {
+    return peer_change_id_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] std::uint64_t active_change_id() const noexcept {
+    return active_change_id_.load(std::memory_order_acquire);
+  }
+  [[nodiscard]] std::uint64_t coupling_refusals() const noexcept {
+    return coupling_refusals_.load(std::memory_order_acquire);
+  }
 
  private:
   [[nodiscard]] double master_command(Mode mode, double weight, double position_m,
@@ -200,6 +223,8 @@ class NodeCore {
                                      std::uint32_t& flags) noexcept;
   void publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept;
   void apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept;
+  // Why arm and engage are refused now (nullptr: permitted). RT-safe.
+  [[nodiscard]] const char* coupling_refusal() const noexcept;
 
   NodeSettings settings_;
   device::HapticDevice& device_;
@@ -223,6 +248,10 @@ class NodeCore {
   rt::LatestValue<ActiveLaw> active_out_{};
   std::atomic<Mode> mode_{Mode::kDisarmed};
   std::atomic<const char*> reason_{"start"};
+  std::atomic<std::uint64_t> peer_fingerprint_{0};
+  std::atomic<std::uint64_t> peer_change_id_{0};
+  std::atomic<std::uint64_t> coupling_refusals_{0};
+  std::atomic<std::uint64_t> active_change_id_{0};
 
   // RT-thread state.
   std::uint64_t sequence_{0};

@@ -52,6 +52,7 @@ bool NodeStateMachine::coupling_lost(const CycleInputs& in, bool peer_fresh,
 
 CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
   const bool peer_fresh = in.peer_seen && in.peer_age <= params_.peer_timeout;
+  bool refused = false;
   // Safety first, from any state: e-stop and faults win over everything else.
   if (in.command == Command::kEStop && mode_ != Mode::kFault) {
     go(Mode::kSafe, "e-stop", in.now);
@@ -60,11 +61,25 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
   } else {
     switch (mode_) {
       case Mode::kDisarmed:
-        if (in.command == Command::kArm) go(Mode::kArmed, "arm", in.now);
+        if (in.command == Command::kArm) {
+          if (in.coupling_refusal != nullptr) {
+            reason_ = in.coupling_refusal;
+            refused = true;
+          } else {
+            go(Mode::kArmed, "arm", in.now);
+          }
+        } else if (in.command == Command::kEngage && in.coupling_refusal != nullptr) {
+          // Not armed anyway; the configuration's refusal is the reason that matters.
+          reason_ = in.coupling_refusal;
+          refused = true;
+        }
         break;
       case Mode::kArmed:
         if (in.command == Command::kEngage) {
-          if (peer_fresh) {
+          if (in.coupling_refusal != nullptr) {
+            reason_ = in.coupling_refusal;
+            refused = true;
+          } else if (peer_fresh) {
             go(Mode::kAligning, "engage: aligning", in.now);
           } else {
             reason_ = "engage refused: no fresh peer state";
@@ -117,6 +132,7 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
   CycleOutputs out;
   out.mode = mode_;
   out.reason = reason_;
+  out.refused = refused;
   out.actuators_enabled =
       mode_ == Mode::kAligning || mode_ == Mode::kEngaged || mode_ == Mode::kClutched;
   out.centring = mode_ == Mode::kAligning;

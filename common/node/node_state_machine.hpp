@@ -44,6 +44,10 @@ struct CycleInputs {
   // or overran in a burst): whatever it knows of the peer and its device is that old, so
   // coupling ends in safe at once, before a command is written. Non-null: why (static).
   const char* own_stall{nullptr};
+  // Why arm and engage are refused now (README "Before engage": the configuration's own
+  // analysis, the peer's configuration fingerprint or parameter change); nullptr: permitted.
+  // A static string (or one that outlives the machine).
+  const char* coupling_refusal{nullptr};
 };
 
 struct CycleOutputs {
@@ -52,6 +56,7 @@ struct CycleOutputs {
   bool centring{false};         // aligning: the weak centring force guides the operator
   bool actuators_enabled{false};
   const char* reason{""};  // why the last transition happened (static string)
+  bool refused{false};     // this cycle's command was refused by coupling_refusal
 };
 
 class NodeStateMachine {

@@ -111,6 +111,39 @@ std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string&
   return r;
 }
 
+// README "Before engage": a refused arm or engage, with both fingerprints (and both parameter
+// changes) named.
+std::string coupling_refusal_message(const node::NodeCore& core) {
+  const node::NodeSettings& s = core.settings();
+  std::string m = std::string(core.mode_reason()) + " (own configuration fingerprint " +
+                  config::fingerprint_hex(s.config_fingerprint) + ", peer's " +
+                  (core.peer_fingerprint() == 0 ? std::string("none")
+                                                : config::fingerprint_hex(core.peer_fingerprint()));
+  if (core.active_change_id() != core.peer_change_id()) {
+    m += "; own parameter change " + std::to_string(core.active_change_id()) + ", peer's " +
+         std::to_string(core.peer_change_id());
+  }
+  return m + ")";
+}
+
+// README "Before engage": the fingerprints and the check at start, in every telemetry message.
+void fill_configuration(v1::Telemetry& t, const node::NodeCore& core,
+                        const config::NodeSetup& setup) {
+  t.set_config_fingerprint(setup.settings.config_fingerprint);
+  t.set_peer_config_fingerprint(core.peer_fingerprint());
+  v1::ConfigurationCheck* c = t.mutable_configuration_check();
+  c->set_permits_coupling(setup.settings.permits_coupling);
+  c->set_reason(setup.settings.coupling_refusal);
+  c->set_peer_parameter_change_id(core.peer_change_id());
+  if (setup.check) {
+    c->set_verdict(setup.check->verdict);
+    c->set_min_damping_ratio(setup.check->min_damping_ratio);
+    c->set_required_damping_ratio(setup.check->required_damping_ratio);
+    c->set_round_trip_samples(setup.check->round_trip_samples);
+    c->set_allow_unstable(setup.check->allow_unstable);
+  }
+}
+
 }  // namespace
 
 std::uint64_t random_session_id() {
@@ -333,6 +366,7 @@ void NodeApp::start() {
         reply.set_ok(true);
         reply.set_message("shutting down");
       } else if (const auto c = to_command(cmd.kind())) {
+        const std::uint64_t refusals = core.coupling_refusals();
         if (!core.post_command(*c)) {
           reply.set_ok(false);
           reply.set_message("command queue full");
@@ -351,6 +385,10 @@ void NodeApp::start() {
           }
           reply.set_ok(core.commands_applied() >= ticket);
           if (!reply.ok()) reply.set_message("the loop did not take the command within 500 ms");
+          if (core.coupling_refusals() != refusals) {
+            reply.set_ok(false);
+            reply.set_message(coupling_refusal_message(core));
+          }
         }
         spdlog::info("command {} -> {} ({})", v1::NodeCommand::Kind_Name(cmd.kind()),
                      node::to_string(core.mode()), core.mode_reason());
@@ -436,6 +474,7 @@ void NodeApp::start() {
       a->set_ramp_progress(active.ramp_progress);
       t.set_mode(to_proto(core.mode()));
       t.set_mode_reason(core.mode_reason());
+      fill_configuration(t, core, setup_);
       t.set_sent_time_ns(rt::PeriodicLoop::monotonic_now().count());
       t.set_cycles_dropped(core.telemetry_out().dropped());
       v1::LoopStats* l = t.mutable_loop();

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/config/config_loader.hpp"
+#include "common/config/control_fingerprint.hpp"
 #include "common/config/node_loader.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/device/usb_device.hpp"
@@ -42,6 +43,31 @@ std::unique_ptr<device::HapticDevice> open_device(const config::NodeSetup& setup
     throw std::runtime_error(std::string("device: ") + s.message);
   }
   return std::move(made.device);
+}
+
+// README "Before engage": the node's own stability analysis of its configuration, here at
+// start (never on the RT thread, which only reads the outcome). A failed one refuses arm and
+// engage unless experiment.allow_unstable is set, which is then said loudly.
+void apply_configuration_check(const config::LoadedConfig& loaded, config::NodeSetup& setup) {
+  const config::ConfigurationCheck c = config::check_configuration(
+      config::to_teleop_params(loaded), loaded.config.experiment().allow_unstable());
+  setup.settings.permits_coupling = c.permits_coupling;
+  setup.settings.coupling_refusal =
+      c.permits_coupling ? std::string() : "arm and engage " + c.refusal;
+  setup.check = c;
+  spdlog::info(
+      "configuration fingerprint {}; own analysis at {} sample(s) of round trip: {} "
+      "(least damping ratio {:.4f}, required {:.4f})",
+      config::fingerprint_hex(setup.settings.config_fingerprint), c.round_trip_samples, c.verdict,
+      c.min_damping_ratio, c.required_damping_ratio);
+  if (!c.permits_coupling) {
+    spdlog::warn("{}", setup.settings.coupling_refusal);
+  } else if (c.allow_unstable) {
+    spdlog::warn(
+        "EXPERIMENT: experiment.allow_unstable is set: this node arms a configuration "
+        "its analysis calls {} (least damping ratio {:.4f})",
+        c.verdict, c.min_damping_ratio);
+  }
 }
 
 }  // namespace
@@ -89,6 +115,7 @@ int run_node_main(transport::Role role, int argc, char** argv) {
     const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
     config::NodeSetup setup = config::to_node_setup(loaded, role);
     setup.settings.session_id = random_session_id();
+    apply_configuration_check(loaded, setup);
     app = std::make_unique<NodeApp>(setup, open_device(setup));
     app->start();
   } catch (const config::ConfigError& e) {

@@ -33,8 +33,10 @@ Role from_proto(teleop::v1::NodeRole r) {
   }
 }
 
-// The crc32 field (number 15, wire type 5) is one tag byte and four bytes, last on the wire.
+// The crc32 field (number 15, wire type 5) is one tag byte and four bytes, last on the wire:
+// the encoder appends it by hand after every other field (16 and 17 too), so it covers them.
 constexpr std::size_t kCrcFieldBytes = 5;
+constexpr char kCrcTag = static_cast<char>((15 << 3) | 5);
 
 std::uint32_t checksum(std::string_view bytes) {
   return static_cast<std::uint32_t>(
@@ -78,9 +80,13 @@ std::string encode(const NodeStateRecord& r) {
   m.mutable_fixture()->set_force_n(r.fixture_force_N);
   m.set_clutched(r.clutched);
   m.set_fault_flags(r.fault_flags);
-  const std::string body = m.SerializeAsString();
-  m.set_crc32(checksum(body));
-  return m.SerializeAsString();
+  m.set_config_fingerprint(r.config_fingerprint);
+  m.set_parameter_change_id(r.parameter_change_id);
+  std::string bytes = m.SerializeAsString();
+  const std::uint32_t crc = checksum(bytes);
+  bytes.push_back(kCrcTag);
+  for (int i = 0; i < 4; ++i) bytes.push_back(static_cast<char>((crc >> (8 * i)) & 0xFFU));
+  return bytes;
 }
 
 std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_view bytes) {
@@ -91,6 +97,7 @@ std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_vie
   teleop::v1::NodeState m;
   if (bytes.size() > 4096 || !m.ParseFromArray(bytes.data(), static_cast<int>(bytes.size())) ||
       m.sequence() == 0 || m.session_id() == 0 || !m.has_crc32() || bytes.size() < kCrcFieldBytes ||
+      bytes[bytes.size() - kCrcFieldBytes] != kCrcTag ||
       checksum(bytes.substr(0, bytes.size() - kCrcFieldBytes)) != m.crc32()) {
     return reject(Rejection::kMalformed);
   }
@@ -134,6 +141,8 @@ std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_vie
   r.fixture_force_N = m.fixture().force_n();
   r.clutched = m.clutched();
   r.fault_flags = m.fault_flags();
+  r.config_fingerprint = m.config_fingerprint();
+  r.parameter_change_id = m.parameter_change_id();
   return out;
 }
 

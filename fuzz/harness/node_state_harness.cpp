@@ -52,7 +52,8 @@ bool same_record(const NodeStateRecord& a, const NodeStateRecord& b) {
          a.fixture_in_contact == b.fixture_in_contact &&
          same_bits(a.fixture_penetration_m, b.fixture_penetration_m) &&
          same_bits(a.fixture_force_N, b.fixture_force_N) && a.clutched == b.clutched &&
-         a.fault_flags == b.fault_flags;
+         a.fault_flags == b.fault_flags && a.config_fingerprint == b.config_fingerprint &&
+         a.parameter_change_id == b.parameter_change_id;
 }
 
 std::uint32_t crc32_of(std::string_view bytes) {

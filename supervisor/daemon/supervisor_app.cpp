@@ -21,6 +21,7 @@
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
+#include "supervisor/daemon/configuration_check.hpp"
 #include "supervisor/daemon/monitors.hpp"
 #include "supervisor/daemon/parameter_audit.hpp"
 #include "supervisor/daemon/report.hpp"
@@ -413,8 +414,28 @@ struct SupervisorApp::Impl {
     }
   }
 
+  // README "Before engage": both nodes' fingerprints against the supervisor's own; a
+  // difference (new or changed) is an alarm naming the fingerprints and, where telemetry shows
+  // them, the fields.
+  void check_configurations() {
+    ApprovedParameters approved;
+    approved.change_id = change_id;
+    approved.gains = live.gains;
+    approved.master_fixture_N_per_m = live.master_fixture_N_per_m;
+    approved.slave_fixture_N_per_m = live.slave_fixture_N_per_m;
+    const ConfigurationMismatch m = compare_configurations(
+        master_setup.settings.config_fingerprint, approved, master.last ? &*master.last : nullptr,
+        slave.last ? &*slave.last : nullptr);
+    if (!m.message.empty() && m.message != configuration_mismatch) {
+      alarm(v1::Alarm::WARNING, "configuration", m.side, m.message + " (arm and engage refused)",
+            {});
+    }
+    configuration_mismatch = m.message;
+  }
+
   void check_live() {
     const std::int64_t now = monotonic_ns();
+    check_configurations();
     // Heartbeats.
     for (NodeView* n : {&master, &slave}) {
       if (n->last && now - n->last_received_ns > 500'000'000) {
@@ -691,6 +712,23 @@ struct SupervisorApp::Impl {
     slave.summary->fill(*s.mutable_slave(), now,
                         read_monitors(*slave.oscillation, *slave.passivity));
     s.set_client_may_command(may_command);
+    fill_configuration_status(s);
+  }
+
+  // README "Before engage": the fingerprints, each node's own check, the experiment banner.
+  void fill_configuration_status(v1::SupervisorStatus& s) const {
+    s.set_config_fingerprint(master_setup.settings.config_fingerprint);
+    s.set_configuration_mismatch(configuration_mismatch);
+    s.set_experiment_banner(experiment_banner(loaded.config.experiment().allow_unstable(),
+                                              master.last ? &*master.last : nullptr,
+                                              slave.last ? &*slave.last : nullptr));
+    for (const auto& [view, summary] :
+         {std::pair{&master, s.mutable_master()}, std::pair{&slave, s.mutable_slave()}}) {
+      if (!view->last) continue;
+      summary->set_config_fingerprint(view->last->config_fingerprint());
+      summary->set_peer_config_fingerprint(view->last->peer_config_fingerprint());
+      *summary->mutable_configuration_check() = view->last->configuration_check();
+    }
   }
 
   // A state command from a console, forwarded to the node(s) it names; both nodes' replies
@@ -962,6 +1000,7 @@ struct SupervisorApp::Impl {
   std::uint64_t checks{0};
   std::vector<std::string> read_only_keys{};
   bool heard_master{false};
+  std::string configuration_mismatch{};  // "" while the supervisor and both nodes agree
   bool recorder_failure_announced{false};
   bool recording_file_lost_announced{false};
   std::int64_t last_iteration_ns{0};

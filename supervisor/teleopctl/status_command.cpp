@@ -181,6 +181,17 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
       out << text << "\n";
       return kExitOk;
     }
+    // README "Before engage": the experiment banner and any configuration mismatch first.
+    if (!s.experiment_banner().empty()) out << s.experiment_banner() << "\n";
+    if (!s.configuration_mismatch().empty()) {
+      out << "CONFIGURATION MISMATCH: " << s.configuration_mismatch() << "\n";
+    }
+    auto fp = [](std::uint64_t f) {
+      return f == 0 ? std::string("none") : fmt::format("{:016x}", f);
+    };
+    out << "configuration fingerprint: supervisor " << fp(s.config_fingerprint()) << ", master "
+        << fp(s.master().config_fingerprint()) << ", slave " << fp(s.slave().config_fingerprint())
+        << "\n";
     const v1::StabilityReport& r = s.report();
     out << fmt::format(
         "stability: {}, minimum damping ratio {:.4f} (required {:.4f}), round "

@@ -146,6 +146,30 @@ TEST(ConsoleScreen, EightyByTwentyFourShowsNodesStabilityRecorderAndKeys) {
   EXPECT_EQ(lines.front().find("NO SUMMARY"), std::string::npos);
 }
 
+// README "Before engage": an experiment flag that arms what the analysis refuses, and
+// nodes whose configurations differ, are said right under the header, whatever else is shown.
+TEST(ConsoleScreen, TheExperimentBannerAndAConfigurationMismatchAreRightUnderTheHeader) {
+  ConsoleView v;
+  v.status = engaged_status();
+  EXPECT_FALSE(contains(render_console(v, 24, 80), "EXPERIMENT"));
+  v.status->set_experiment_banner(
+      "EXPERIMENT: experiment.allow_unstable is set on the master and slave: configurations "
+      "predicted unstable may engage");
+  v.status->set_configuration_mismatch(
+      "configuration fingerprints differ: supervisor 00000000000000aa, slave 00000000000000bb");
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u) << joined(lines);
+  for (const std::string& l : lines) EXPECT_LE(l.size(), 80u) << l;
+  EXPECT_EQ(lines[1].rfind("!! EXPERIMENT: experiment.allow_unstable is set", 0), 0u)
+      << joined(lines);
+  EXPECT_EQ(lines[2].rfind("!! CONFIGURATION MISMATCH: configuration fingerprints differ", 0), 0u)
+      << joined(lines);
+  // The rest of the screen is still there.
+  EXPECT_TRUE(has_line_starting(lines, "master ENGAGED")) << joined(lines);
+  EXPECT_TRUE(contains(lines, "stability STABLE")) << joined(lines);
+  EXPECT_EQ(lines.back().rfind("x E-STOP", 0), 0u) << lines.back();
+}
+
 TEST(ConsoleScreen, ARecorderStoppedByAnErrorSaysSo) {
   ConsoleView v;
   v.status = engaged_status();

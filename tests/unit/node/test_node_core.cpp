@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "common/device/sim_device.hpp"
@@ -27,16 +28,18 @@ NodeSettings settings(Role role) {
   s.machine.engage_ramp = 20ms;
   s.safe_ramp = 10ms;
   s.session_id = role == Role::kMaster ? 11 : 22;
+  s.config_fingerprint = 0x5eed;  // the same configuration on both sides
   return s;
 }
 
 struct Pair {
   explicit Pair(double master_start_m = 0.0, double push_N = 0.0,
-                sim::Environment environment = sim::Environment::free_space())
+                sim::Environment environment = sim::Environment::free_space(),
+                const NodeSettings& slave_settings = settings(Role::kSlave))
       : master_dev(master_config(master_start_m, push_N)),
         slave_dev(device::SimDeviceConfig::paddle_slave(environment)),
         master(settings(Role::kMaster), init(master_dev)),
-        slave(settings(Role::kSlave), init(slave_dev)) {}
+        slave(slave_settings, init(slave_dev)) {}
 
   static device::SimDeviceConfig master_config(double start_m, double push_N) {
     sim::HumanParams h;
@@ -277,6 +280,132 @@ TEST(NodeCore, TheRampIsLinearFromTheValueInForce) {
   }
   // 0 -> 1000 N/m over 10 cycles: 100 N/m per cycle, from the cycle it applied.
   for (int i = 0; i <= 10; ++i) EXPECT_NEAR(k[static_cast<std::size_t>(i)], 100.0 * i, 1e-9) << i;
+}
+
+// README "Before engage" (issue 14 finding 3): arm and engage need the peer's fingerprint,
+// equal to this node's, the same parameter change on both, and this node's own check passed.
+NodeSettings slave_with(std::uint64_t fingerprint) {
+  NodeSettings s = settings(Role::kSlave);
+  s.config_fingerprint = fingerprint;
+  return s;
+}
+
+bool ever_coupled(const std::vector<CycleRecord>& recs) {
+  for (const CycleRecord& r : recs) {
+    if (r.mode == Mode::kAligning || r.mode == Mode::kEngaged || r.mode == Mode::kClutched ||
+        r.mode == Mode::kArmed) {
+      return true;
+    }
+  }
+  return false;
+}
+
+TEST(NodeCore, APeerWithAnotherFingerprintRefusesArmAndEngageOnBothSides) {
+  Pair p(0.0, 0.0, sim::Environment::free_space(), slave_with(0xbad));
+  for (int i = 0; i < 3; ++i) p.cycle();
+  EXPECT_EQ(p.master.peer_fingerprint(), 0xbadu);
+  EXPECT_EQ(p.slave.peer_fingerprint(), 0x5eedu);
+  for (int k = 0; k < 5; ++k) {
+    p.command_both(Command::kArm);
+    p.command_both(Command::kEngage);
+    for (int i = 0; i < 20; ++i) p.cycle();
+  }
+  EXPECT_EQ(p.master.mode(), Mode::kDisarmed);
+  EXPECT_EQ(p.slave.mode(), Mode::kDisarmed);
+  EXPECT_NE(std::string(p.master.mode_reason()).find("fingerprint differs"), std::string::npos)
+      << p.master.mode_reason();
+  EXPECT_NE(std::string(p.slave.mode_reason()).find("fingerprint differs"), std::string::npos);
+  EXPECT_EQ(p.master.coupling_refusals(), 10u);  // five arms and five engages
+  EXPECT_EQ(p.slave.coupling_refusals(), 10u);
+  // Never armed, never coupled, no force, in any cycle.
+  EXPECT_FALSE(ever_coupled(p.master_records));
+  EXPECT_FALSE(ever_coupled(p.slave_records));
+  for (const CycleRecord& r : p.master_records) ASSERT_EQ(r.command_N, 0.0);
+  for (const CycleRecord& r : p.slave_records) ASSERT_EQ(r.command_N, 0.0);
+}
+
+TEST(NodeCore, APeerWithoutFingerprintOrNoPeerAtAllRefusesArm) {
+  {
+    Pair p;  // nothing delivered yet
+    p.master_silent = p.slave_silent = true;
+    p.command_both(Command::kArm);
+    EXPECT_EQ(p.master.mode(), Mode::kDisarmed);
+    EXPECT_NE(std::string(p.master.mode_reason()).find("no state from the peer"), std::string::npos)
+        << p.master.mode_reason();
+  }
+  {
+    // An older slave: its states carry no fingerprint (0 on the wire).
+    Pair p(0.0, 0.0, sim::Environment::free_space(), slave_with(0));
+    for (int i = 0; i < 3; ++i) p.cycle();
+    p.command_both(Command::kArm);
+    EXPECT_EQ(p.master.mode(), Mode::kDisarmed);
+    EXPECT_NE(std::string(p.master.mode_reason()).find("sends no configuration fingerprint"),
+              std::string::npos)
+        << p.master.mode_reason();
+  }
+}
+
+TEST(NodeCore, AFailedOwnCheckRefusesArmWithItsReason) {
+  NodeSettings s = settings(Role::kSlave);
+  s.permits_coupling = false;
+  s.coupling_refusal = "arm and engage refused: the analysis says unstable (zeta -0.0123)";
+  Pair p(0.0, 0.0, sim::Environment::free_space(), s);
+  for (int i = 0; i < 3; ++i) p.cycle();
+  p.command_both(Command::kArm);
+  EXPECT_EQ(p.master.mode(), Mode::kArmed);  // the master's own check passed
+  EXPECT_EQ(p.slave.mode(), Mode::kDisarmed);
+  EXPECT_STREQ(p.slave.mode_reason(), s.coupling_refusal.c_str());
+}
+
+TEST(NodeCore, AnotherParameterChangeOnThePeerRefusesEngageButAnAgreedOneDoesNot) {
+  Pair p;
+  p.engage();
+  for (int i = 0; i < 50; ++i) p.cycle();
+  // A change on the master only (not what the supervisor does): both still engaged (the check
+  // is at arm and engage), but once disengaged neither engages again.
+  Retune r;
+  r.id = 4;
+  r.gains = Gains{500, 500, 2, 2, 0, 0, 0};
+  r.apply_at_master_sequence = p.master_records.back().sequence + 5;
+  p.master.post_retune(r);
+  for (int i = 0; i < 30; ++i) p.cycle();
+  EXPECT_EQ(p.master.mode(), Mode::kEngaged);
+  p.command_both(Command::kDisengage);
+  ASSERT_EQ(p.master.mode(), Mode::kArmed);
+  p.command_both(Command::kEngage);
+  for (int i = 0; i < 50; ++i) p.cycle();
+  EXPECT_EQ(p.master.mode(), Mode::kArmed);
+  EXPECT_EQ(p.slave.mode(), Mode::kArmed);
+  EXPECT_NE(std::string(p.master.mode_reason()).find("another parameter change"), std::string::npos)
+      << p.master.mode_reason();
+  // The same change on the slave (as the supervisor sends it to both): engages again.
+  p.slave.post_retune(r);
+  for (int i = 0; i < 5; ++i) p.cycle();
+  p.command_both(Command::kEngage);
+  for (int i = 0; i < 2000 && p.master.mode() != Mode::kEngaged; ++i) p.cycle();
+  EXPECT_EQ(p.master.mode(), Mode::kEngaged);
+}
+
+TEST(NodeCore, AGuardedChangeOnBothWhileEngagedNeverTripsTheCheck) {
+  Pair p;
+  p.engage();
+  Retune r;
+  r.id = 1;
+  r.gains = Gains{400, 400, 2, 2, 0, 0, 0};
+  r.apply_at_master_sequence = p.master_records.back().sequence + 20;
+  r.ramp = 10ms;
+  p.master.post_retune(r);
+  p.slave.post_retune(r);
+  for (int i = 0; i < 100; ++i) p.cycle();
+  EXPECT_EQ(p.master.mode(), Mode::kEngaged);
+  EXPECT_EQ(p.slave.mode(), Mode::kEngaged);
+  // Disengage and engage again under the change: permitted.
+  p.command_both(Command::kDisengage);
+  p.command_both(Command::kEngage);
+  for (int i = 0; i < 2000 && p.master.mode() != Mode::kEngaged; ++i) p.cycle();
+  EXPECT_EQ(p.master.mode(), Mode::kEngaged);
+  EXPECT_EQ(p.master.coupling_refusals(), 0u);
+  EXPECT_EQ(p.slave.coupling_refusals(), 0u);
 }
 
 }  // namespace

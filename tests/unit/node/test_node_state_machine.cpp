@@ -143,3 +143,60 @@ TEST(NodeStateMachine, AnOwnStallSendsAligningEngagedAndClutchedSafeAtOnce) {
 
 }  // namespace
 }  // namespace teleop::node
+
+namespace teleop::node {
+namespace {
+
+// README "Before engage": a configuration refusal (the node's own analysis, or the peer's
+// fingerprint) refuses arm and engage, says why, and leaves the mode alone.
+TEST(NodeStateMachine, ConfigurationRefusalRefusesArmAndEngage) {
+  static const char* const kWhy = "arm and engage refused: configuration fingerprint differs";
+  NodeStateMachine sm{StateMachineParams{milliseconds(50), milliseconds(500)}};
+  CycleInputs in;
+  in.peer_seen = true;
+  in.aligned = true;
+  in.coupling_refusal = kWhy;
+  for (int i = 1; i <= 3; ++i) {
+    in.now = milliseconds(i);
+    in.command = i == 2 ? Command::kArm : Command::kNone;
+    const CycleOutputs o = sm.step(in);
+    EXPECT_EQ(o.mode, Mode::kDisarmed);
+    EXPECT_FALSE(o.actuators_enabled);
+    EXPECT_EQ(o.refused, i == 2);
+    if (i >= 2) {
+      EXPECT_STREQ(o.reason, kWhy);
+    }
+  }
+  // Engage while disarmed: not armed anyway, and the configuration is said to be why.
+  in.now = milliseconds(3);
+  in.command = Command::kEngage;
+  {
+    const CycleOutputs e = sm.step(in);
+    EXPECT_EQ(e.mode, Mode::kDisarmed);
+    EXPECT_TRUE(e.refused);
+    EXPECT_STREQ(e.reason, kWhy);
+  }
+  // Permitted: arm; refused again before engage: stays armed, refused, never aligning.
+  in.coupling_refusal = nullptr;
+  in.now = milliseconds(4);
+  in.command = Command::kArm;
+  ASSERT_EQ(sm.step(in).mode, Mode::kArmed);
+  in.coupling_refusal = kWhy;
+  in.now = milliseconds(5);
+  in.command = Command::kEngage;
+  const CycleOutputs o = sm.step(in);
+  EXPECT_EQ(o.mode, Mode::kArmed);
+  EXPECT_TRUE(o.refused);
+  EXPECT_STREQ(o.reason, kWhy);
+  EXPECT_FALSE(o.actuators_enabled);
+  // E-stop and disengage are never refused.
+  in.now = milliseconds(6);
+  in.command = Command::kEStop;
+  EXPECT_EQ(sm.step(in).mode, Mode::kSafe);
+  in.now = milliseconds(7);
+  in.command = Command::kClear;
+  EXPECT_EQ(sm.step(in).mode, Mode::kDisarmed);
+}
+
+}  // namespace
+}  // namespace teleop::node

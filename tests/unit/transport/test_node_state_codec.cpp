@@ -5,8 +5,10 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <string_view>
 
 #include "common/transport/node_state_codec.hpp"
+#include "teleop/v1/node_state.pb.h"
 
 namespace teleop::transport {
 namespace {
@@ -144,6 +146,95 @@ TEST(RoundTripEstimator, EchoMinusHoldTimeInWholeSamples) {
   rt.sent(100 + RoundTripEstimator::kHistory, milliseconds(60));
   EXPECT_FALSE(rt.echoed(100, microseconds(0), milliseconds(70)).has_value());
   EXPECT_FALSE(rt.echoed(7, microseconds(0), milliseconds(70)).has_value());
+}
+
+}  // namespace
+}  // namespace teleop::transport
+
+// README "Before engage": the configuration fingerprint (field 16) and the parameter change
+// (17) travel with every state, and the checksum covers them although they are numbered above
+// it: flipping a byte of the fingerprint must not pass as another fingerprint.
+namespace teleop::transport {
+namespace {
+namespace fingerprint_wire {
+
+NodeStateRecord with_fingerprint(std::uint64_t seq) {
+  NodeStateRecord r = master_state(seq);
+  r.config_fingerprint = 0x1122'3344'5566'7788ULL;
+  r.parameter_change_id = 3;
+  return r;
+}
+
+// Where field 16 (fixed64: tag (16 << 3) | 1 = 129, varint 0x81 0x01) and its 8 little-endian
+// bytes are in the encoding.
+std::size_t fingerprint_offset(const std::string& bytes, std::uint64_t value) {
+  std::string needle = {static_cast<char>(0x81), static_cast<char>(0x01)};
+  for (int i = 0; i < 8; ++i) needle.push_back(static_cast<char>((value >> (8 * i)) & 0xFF));
+  return bytes.find(needle);
+}
+
+// crc32 (zlib's: IEEE, reflected), computed here bit by bit.
+std::uint32_t crc32_of(std::string_view b) {
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (const char c : b) {
+    crc ^= static_cast<unsigned char>(c);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+  }
+  return crc ^ 0xFFFFFFFFu;
+}
+
+}  // namespace fingerprint_wire
+
+TEST(NodeStateCodec, FingerprintAndParameterChangeRoundTrip) {
+  PeerStateFilter f(Role::kMaster);
+  const auto out = f.accept(encode(fingerprint_wire::with_fingerprint(7)));
+  ASSERT_TRUE(out.has_value());
+  EXPECT_EQ(out->record.config_fingerprint, 0x1122'3344'5566'7788ULL);
+  EXPECT_EQ(out->record.parameter_change_id, 3u);
+}
+
+TEST(NodeStateCodec, TheChecksumIsLastAndCoversTheFingerprint) {
+  const std::string bytes = encode(fingerprint_wire::with_fingerprint(7));
+  const std::size_t at = fingerprint_wire::fingerprint_offset(bytes, 0x1122'3344'5566'7788ULL);
+  ASSERT_NE(at, std::string::npos) << "field 16 not found on the wire";
+  // The last five bytes are field 15 (tag (15 << 3) | 5 = 0x7D) with the zlib crc32 of every
+  // byte before it, little-endian.
+  ASSERT_GT(bytes.size(), 5u);
+  EXPECT_LT(at, bytes.size() - 5) << "the fingerprint must come before the checksum";
+  EXPECT_EQ(static_cast<unsigned char>(bytes[bytes.size() - 5]), 0x7Du);
+  const std::uint32_t crc =
+      fingerprint_wire::crc32_of(std::string_view(bytes).substr(0, bytes.size() - 5));
+  std::uint32_t wire = 0;
+  for (int i = 0; i < 4; ++i) {
+    wire |= static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[bytes.size() - 4 + i]))
+            << (8 * i);
+  }
+  EXPECT_EQ(wire, crc);
+  // Any byte of the fingerprint flipped: rejected as malformed, never read as another one.
+  for (std::size_t i = at + 2; i < at + 10; ++i) {
+    PeerStateFilter f(Role::kMaster);
+    std::string bad = bytes;
+    bad[i] = static_cast<char>(bad[i] ^ 0x01);
+    EXPECT_FALSE(f.accept(bad).has_value()) << "byte " << i;
+    EXPECT_EQ(f.rejected(Rejection::kMalformed), 1u);
+  }
+}
+
+TEST(NodeStateCodec, AnOlderPeersStateIsAcceptedWithoutAFingerprint) {
+  // An older encoder: protobuf's own serialisation, without fields 16 and 17, the checksum
+  // (field 15, the highest it knew) set over the body and serialised last.
+  teleop::v1::NodeState m;
+  m.set_session_id(77);
+  m.set_sequence(5);
+  m.set_role(teleop::v1::MASTER);
+  m.set_mode(teleop::v1::ARMED);
+  m.set_position_m(0.01);
+  m.set_crc32(fingerprint_wire::crc32_of(m.SerializeAsString()));
+  PeerStateFilter f(Role::kMaster);
+  const auto out = f.accept(m.SerializeAsString());
+  ASSERT_TRUE(out.has_value());
+  EXPECT_EQ(out->record.config_fingerprint, 0u);  // the node then refuses to arm
+  EXPECT_EQ(out->record.parameter_change_id, 0u);
 }
 
 }  // namespace
