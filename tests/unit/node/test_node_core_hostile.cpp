@@ -200,7 +200,12 @@ TEST_P(NodeCoreStall, TheFirstCycleAfterALateWakeUpIsSafeAndItsCommandTheSafeRam
 INSTANTIATE_TEST_SUITE_P(Stalls, NodeCoreStall,
                          ::testing::Values(StallCase{200ms, false}, StallCase{200ms, true},
                                            StallCase{1000ms, false}, StallCase{1000ms, true},
-                                           StallCase{31ms, true}));
+                                           StallCase{31ms, true}),
+                         [](const ::testing::TestParamInfo<StallCase>& i) {
+                           return std::to_string(i.param.stall.count()) + "ms" +
+                                  (i.param.fresh_arrival ? "StaleStateFreshArrival"
+                                                         : "LinkStalledToo");
+                         });
 
 TEST(NodeCoreStallSiblings, AWakeUpWithinThePeerTimeoutStaysEngaged) {
   device::SimDevice hand(human_master_config(0.5));
