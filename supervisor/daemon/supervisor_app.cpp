@@ -931,6 +931,7 @@ struct SupervisorApp::Impl {
       }
       if (monotonic_ns() >= next_check) {
         next_check += 100'000'000;
+        excuse_own_stall();  // a stall inside this iteration (e.g. in the poll) counts too
         check_live();
         // A recorder that stopped on an error (disk full) is said once, loudly; the nodes are
         // not affected and the file keeps every chunk written before it.
