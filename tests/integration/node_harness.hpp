@@ -113,6 +113,12 @@ inline std::string paddles_system(const std::string& master_node, const std::str
          "link { engage_ramp_ms: 20 }\n";
 }
 
+// A plaintext loopback system whose supervisor retunes the nodes must opt in by name: without
+// CURVE keys a node refuses every RETUNE (common/runtime/command_authority.hpp). Appended to
+// the configuration of the live tests that need it.
+inline constexpr const char* kAllowUnauthenticatedRetune =
+    "security { allow_unauthenticated_retune: true }\n";
+
 class TempDir {
  public:
   TempDir() {

@@ -152,7 +152,8 @@ std::string system_config(const SystemPorts& p, const fs::path& record_dir) {
          paddles_system(node_section(p.nodes, true, "", 80), node_section(p.nodes, false, "", 80),
                         "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }", 0.5) +
          "supervisor { report_endpoint: \"" + tcp(p.report) + "\" request_endpoint: \"" +
-         tcp(p.request) + "\" record_dir: \"" + record_dir.string() + "\" }\n";
+         tcp(p.request) + "\" record_dir: \"" + record_dir.string() + "\" }\n" +
+         kAllowUnauthenticatedRetune;
 }
 
 bool linked(const v1::Telemetry& t) { return t.link().accepted() > 0; }

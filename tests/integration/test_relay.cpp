@@ -40,7 +40,7 @@ std::string relay_config(const RelayPorts& p) {
   return paddles_system(node(true), node(false),
                         "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }", 0.5) +
          "supervisor { report_endpoint: \"" + tcp(p.report) + "\" request_endpoint: \"" +
-         tcp(p.request) + "\" record: false }\n";
+         tcp(p.request) + "\" record: false }\n" + kAllowUnauthenticatedRetune;
 }
 
 class RelayedSystem {

@@ -47,9 +47,11 @@ std::string supervisor_section(const SystemPorts& p, const fs::path& record_dir,
 // the slave section.
 std::string paddles_config(const SystemPorts& p, const fs::path& record_dir, double push_N,
                            const std::string& slave_fixture = "", const std::string& extra = "") {
+  // Plaintext unless `extra` brings its own keys: the supervisor's changes need the opt-in.
+  const bool keyed = extra.find("security {") != std::string::npos;
   return paddles_system(node_section(p.nodes, true, "", 80), node_section(p.nodes, false, "", 80),
                         slave_fixture, push_N) +
-         supervisor_section(p, record_dir) + extra;
+         supervisor_section(p, record_dir) + extra + (keyed ? "" : kAllowUnauthenticatedRetune);
 }
 
 // A shipped example with this test's endpoints inserted into its master and slave sections.
@@ -66,7 +68,8 @@ std::string example_with_endpoints(const std::string& name, const SystemPorts& p
     if (at == std::string::npos) return "";
     text.insert(at + open.size(), " " + node_section(p.nodes, master, "", 80) + " ");
   }
-  return text + "\n" + supervisor_section(p, record_dir, supervisor_extra);
+  return text + "\n" + supervisor_section(p, record_dir, supervisor_extra) +
+         kAllowUnauthenticatedRetune;
 }
 
 // The official TypeScript reader (tests/mcap_js/verify.mjs): every message decoded against

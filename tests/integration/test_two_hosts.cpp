@@ -137,7 +137,8 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
           "supervisor { report_endpoint: \"" + tcp(report) + "\" request_endpoint: \"" +
           tcp(request) + "\" record: false }\n" +
           // Plaintext: the relay forwards frames as they are and cannot take part in CURVE.
-          "security { insecure: true }\n");
+          // The supervisor's changes without keys: opted in by name.
+          "security { insecure: true allow_unauthenticated_retune: true }\n");
   // 2-3 ms each way (within the issue's 2-5 ms), in order as on one TCP connection (the link's own
   // transport).
   const std::string delay = " --delay-ms 2.5 --jitter-ms 0.5 --in-order";
