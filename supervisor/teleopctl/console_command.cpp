@@ -113,9 +113,11 @@ class Console {
     std::int64_t last_draw = 0;
     bool dirty = true;
     while (!quit_ && !g_interrupted.load()) {
-      zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
+      // The terminal too: a key (the e-stop) is taken the moment it arrives.
+      zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0},
+                                 {nullptr, STDIN_FILENO, ZMQ_POLLIN, 0}};
       try {
-        (void)zmq::poll(items, 1, std::chrono::milliseconds(20));
+        (void)zmq::poll(items, 2, std::chrono::milliseconds(20));
       } catch (const zmq::error_t&) {
       }
       zmq::message_t topic;
@@ -348,6 +350,9 @@ class Console {
     } else if (!r.supervisor) {
       sup_text += ", no reply yet";
     }
+    // The instant on this host's monotonic clock (the nodes' too), for their telemetry.
+    say(fmt::format("e-stop sent at CLOCK_MONOTONIC {}.{:09d} s",
+                    r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL));
     say("E-STOP: sent to the nodes directly: " + r.nodes_text() + "; " + sup_text +
         (r.all_safe() ? " -- both nodes confirmed safe" : " -- NOT CONFIRMED: check the nodes"));
   }
