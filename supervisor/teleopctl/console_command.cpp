@@ -344,17 +344,14 @@ class Console {
         SupervisorTarget{a_.sup.endpoint, a_.sup.server_key.empty() ? "" : a_.sup.key,
                          a_.sup.server_key},
         "console", timeout_ms);
-    std::string sup_text = "supervisor told";
-    if (!r.supervisor_error.empty()) {
-      sup_text = "supervisor not told (" + r.supervisor_error + ")";
-    } else if (!r.supervisor) {
-      sup_text += ", no reply yet";
-    }
-    // The instant on this host's monotonic clock (the nodes' too), for their telemetry.
-    say(fmt::format("e-stop sent at CLOCK_MONOTONIC {}.{:09d} s",
-                    r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL));
-    say("E-STOP: sent to the nodes directly: " + r.nodes_text() + "; " + sup_text +
-        (r.all_safe() ? " -- both nodes confirmed safe" : " -- NOT CONFIRMED: check the nodes"));
+    // Two lines of at most 80 columns: who answered, then the verdict with the send's instant
+    // on this host's monotonic clock (the nodes' too, for their telemetry).
+    say("E-STOP: sent to the nodes directly: " + r.nodes_text());
+    if (!r.supervisor_error.empty()) say("E-STOP: supervisor not told: " + r.supervisor_error);
+    say(fmt::format(
+        "{} (sent at CLOCK_MONOTONIC {}.{:09d} s)",
+        r.all_safe() ? "-- both nodes confirmed safe" : "-- NOT CONFIRMED: check the nodes",
+        r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL));
   }
 
   void predict(const std::string& line) {
