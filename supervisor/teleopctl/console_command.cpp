@@ -113,9 +113,11 @@ class Console {
     std::int64_t last_draw = 0;
     bool dirty = true;
     while (!quit_ && !g_interrupted.load()) {
-      zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0}};
+      // The terminal too: a key (the e-stop) is taken the moment it arrives.
+      zmq::pollitem_t items[] = {{sub.handle(), 0, ZMQ_POLLIN, 0},
+                                 {nullptr, STDIN_FILENO, ZMQ_POLLIN, 0}};
       try {
-        (void)zmq::poll(items, 1, std::chrono::milliseconds(20));
+        (void)zmq::poll(items, 2, std::chrono::milliseconds(20));
       } catch (const zmq::error_t&) {
       }
       zmq::message_t topic;
@@ -342,14 +344,14 @@ class Console {
         SupervisorTarget{a_.sup.endpoint, a_.sup.server_key.empty() ? "" : a_.sup.key,
                          a_.sup.server_key},
         "console", timeout_ms);
-    std::string sup_text = "supervisor told";
-    if (!r.supervisor_error.empty()) {
-      sup_text = "supervisor not told (" + r.supervisor_error + ")";
-    } else if (!r.supervisor) {
-      sup_text += ", no reply yet";
-    }
-    say("E-STOP: sent to the nodes directly: " + r.nodes_text() + "; " + sup_text +
-        (r.all_safe() ? " -- both nodes confirmed safe" : " -- NOT CONFIRMED: check the nodes"));
+    // Two lines of at most 80 columns: who answered, then the verdict with the send's instant
+    // on this host's monotonic clock (the nodes' too, for their telemetry).
+    say("E-STOP: sent to the nodes directly: " + r.nodes_text());
+    if (!r.supervisor_error.empty()) say("E-STOP: supervisor not told: " + r.supervisor_error);
+    say(fmt::format(
+        "{} (sent at CLOCK_MONOTONIC {}.{:09d} s)",
+        r.all_safe() ? "-- both nodes confirmed safe" : "-- NOT CONFIRMED: check the nodes",
+        r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL));
   }
 
   void predict(const std::string& line) {

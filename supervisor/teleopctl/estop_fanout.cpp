@@ -34,7 +34,8 @@ std::string EstopResult::nodes_text() const {
   for (const EstopOutcome& o : nodes) {
     if (!text.empty()) text += ", ";
     if (o.reply) {
-      text += o.name + " " + v1::NodeMode_Name(o.reply->mode());
+      text += o.name + " " + v1::NodeMode_Name(o.reply->mode()) +
+              (o.via_supervisor ? " (through the supervisor)" : "");
     } else if (!o.error.empty()) {
       text += o.name + " NOT SENT (" + o.error + ")";
     } else {
@@ -126,11 +127,19 @@ EstopResult estop_everywhere(const std::vector<EstopTarget>& nodes,
     if (!result.supervisor_asked) sup.reset();
   }
 
-  // The replies, together, until every node has answered or the timeout passed.
+  // The replies, together, until every node has answered (directly, or to the supervisor's
+  // forwarded e-stop when its reply comes first) or the timeout passed.
   const auto deadline = sent_at + timeout;
+  auto through_supervisor = [&](const std::string& name) -> const v1::NodeCommandOutcome* {
+    if (!result.supervisor) return nullptr;
+    for (const v1::NodeCommandOutcome& o : result.supervisor->node_command().outcomes()) {
+      if (o.node() == name && o.replied()) return &o;
+    }
+    return nullptr;
+  };
   auto pending = [&] {
-    for (const auto& s : sockets) {
-      if (s) return true;
+    for (std::size_t i = 0; i < sockets.size(); ++i) {
+      if (sockets[i] && through_supervisor(result.nodes[i].name) == nullptr) return true;
     }
     return false;
   };
@@ -184,6 +193,13 @@ EstopResult estop_everywhere(const std::vector<EstopTarget>& nodes,
         result.nodes[i].error = "unreadable reply";
       }
       sockets[i].reset();
+    }
+  }
+  for (EstopOutcome& o : result.nodes) {
+    if (o.reply) continue;
+    if (const v1::NodeCommandOutcome* via = through_supervisor(o.name)) {
+      o.reply = via->reply();
+      o.via_supervisor = true;
     }
   }
   return result;

@@ -32,6 +32,9 @@ struct EstopOutcome {
   std::optional<v1::NodeCommandReply> reply{};  // nullopt: no reply within the timeout
   std::string error{};                          // the socket could not even be set up
   long long reply_ns{0};                        // from the send to the reply
+  // No direct reply (e.g. the node does not take this client's key), but the supervisor's
+  // forwarded e-stop reached it: `reply` is the node's answer to the supervisor.
+  bool via_supervisor{false};
   [[nodiscard]] bool safe() const {
     return reply && (reply->mode() == v1::SAFE || reply->mode() == v1::FAULT);
   }

@@ -102,7 +102,8 @@ std::string set_usage() {
          "ratio meets the required one; both nodes then switch at an agreed master sequence,\n"
          "ramped. PATH: gains.kpm|kps|kdm|kds|kvm|kvs|kfm, master.fixture.stiffness_N_per_m,\n"
          "slave.fixture.stiffness_N_per_m. --dry-run only predicts. Supervisor default\n"
-         "127.0.0.1:5567. Exit: 0 accepted, 1 error, 2 usage, 3 refused, 4 no reply.\n";
+         "127.0.0.1:5567 (without --key and --server-key: the keys of a live `teleopctl launch`\n"
+         "there, if any). Exit: 0 accepted, 1 error, 2 usage, 3 refused, 4 no reply.\n";
 }
 
 int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {

@@ -116,8 +116,11 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
         rc = kExitNoReply;
       } else {
         out << o.name << " " << o.endpoint << ": " << v1::NodeMode_Name(o.reply->mode()) << " ("
-            << o.reply->mode_reason() << ") in "
-            << fmt::format("{:.1f}", static_cast<double>(o.reply_ns) * 1e-6) << " ms\n";
+            << o.reply->mode_reason() << ")"
+            << (o.via_supervisor
+                    ? std::string(" through the supervisor (no direct reply)")
+                    : fmt::format(" in {:.1f} ms", static_cast<double>(o.reply_ns) * 1e-6))
+            << "\n";
         if (!o.safe() && rc == kExitOk) rc = kExitRefused;
       }
     }
@@ -145,7 +148,9 @@ std::string status_usage() {
          "telemetry is arriving, each node's mode and its reason, the recording (file, messages,\n"
          "drops) and the newest alarms.\n"
          "--json prints teleop.v1.SupervisorStatus as JSON (proto/teleop/v1/supervisor.proto,\n"
-         "field names in lowerCamelCase). Exit 0, 1 error, 4 no reply.\n";
+         "field names in lowerCamelCase). Without --key and --server-key, the keys of a live\n"
+         "`teleopctl launch` whose supervisor is at that endpoint, if any. Exit 0, 1 error,\n"
+         "4 no reply.\n";
 }
 
 int run_status(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {

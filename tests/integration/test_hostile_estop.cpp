@@ -131,15 +131,8 @@ class LiveSystem {
     const std::size_t s = st.cycles().size();
     ASSERT_TRUE(eventually([&] { return mt.cycles().size() > m && st.cycles().size() > s; }));
   }
-  [[nodiscard]] std::vector<std::string> estop_args() const {
-    return {"estop",
-            "--master",
-            "127.0.0.1:" + std::to_string(ports_.nodes.master_command),
-            "--slave",
-            "127.0.0.1:" + std::to_string(ports_.nodes.slave_command),
-            "--supervisor",
-            "127.0.0.1:" + std::to_string(ports_.request)};
-  }
+  // `teleopctl estop CONFIG`: the nodes' and the supervisor's endpoints from the file.
+  [[nodiscard]] std::vector<std::string> estop_args() const { return {"estop", config_.string()}; }
   [[nodiscard]] const fs::path& config() const { return config_; }
   [[nodiscard]] const SystemPorts& ports() const { return ports_; }
   Process& master() { return *master_; }
@@ -285,8 +278,10 @@ TEST(HostileEstop, AnEndpointWithNoNodeBehindItDoesNotDelayTheOther) {
   LiveSystem sys;
   ASSERT_TRUE(sys.up()) << sys.logs();
   // Later flags win: the master's endpoint is one where nothing listens.
-  const EstopRun r =
-      estop_once(sys, nullptr, {"--master", "127.0.0.1:" + std::to_string(free_port())});
+  // (--no-supervisor: the supervisor would answer for the real master, which is not the one
+  // named here.)
+  const EstopRun r = estop_once(
+      sys, nullptr, {"--master", "127.0.0.1:" + std::to_string(free_port()), "--no-supervisor"});
   ASSERT_FALSE(::testing::Test::HasFatalFailure());
   EXPECT_EQ(r.exit_code, 4) << r.out;
   EXPECT_NE(r.out.find(": NO REPLY"), std::string::npos) << r.out;
@@ -402,8 +397,13 @@ TEST(HostileEstopConsole, XWithTheSupervisorFrozenSendsBothNodesSafeWithin50ms) 
   term.key("x");
   ASSERT_TRUE(sys.mt.wait_for_mode(v1::SAFE, 5s)) << sys.logs();
   ASSERT_TRUE(sys.st.wait_for_mode(v1::SAFE, 5s)) << sys.logs();
-  const Latency m = safe_latency(sys.mt, t0);
-  const Latency s = safe_latency(sys.st, t0);
+  // From the send the console reports (the key's instant when it reports none, as before).
+  std::string said;
+  (void)term.wait_for_text("both nodes confirmed safe", said);
+  const std::int64_t sent = sent_instant(said).value_or(t0);
+  std::cout << "console: from the key to the send " << ms(sent - t0) << " ms\n";
+  const Latency m = safe_latency(sys.mt, sent);
+  const Latency s = safe_latency(sys.st, sent);
   ASSERT_TRUE(m.ns.has_value()) << m.why;
   ASSERT_TRUE(s.ns.has_value()) << s.why;
   std::cout << "console x, supervisor frozen: master SAFE after " << ms(*m.ns)
@@ -429,8 +429,13 @@ TEST(HostileEstopConsole, XWithAllUpSendsBothNodesSafeWithin50ms) {
   term.key("x");
   ASSERT_TRUE(sys.mt.wait_for_mode(v1::SAFE, 5s)) << sys.logs();
   ASSERT_TRUE(sys.st.wait_for_mode(v1::SAFE, 5s)) << sys.logs();
-  const Latency m = safe_latency(sys.mt, t0);
-  const Latency s = safe_latency(sys.st, t0);
+  // From the send the console reports (the key's instant when it reports none, as before).
+  std::string said;
+  (void)term.wait_for_text("both nodes confirmed safe", said);
+  const std::int64_t sent = sent_instant(said).value_or(t0);
+  std::cout << "console: from the key to the send " << ms(sent - t0) << " ms\n";
+  const Latency m = safe_latency(sys.mt, sent);
+  const Latency s = safe_latency(sys.st, sent);
   ASSERT_TRUE(m.ns.has_value()) << m.why;
   ASSERT_TRUE(s.ns.has_value()) << s.why;
   std::cout << "console x, all up: master SAFE after " << ms(*m.ns) << " ms, slave after "
@@ -484,32 +489,24 @@ TEST(HostileEstopLaunch, LaunchWithoutKeysRefusesPlaintextClientsAndTheLocalClie
                   std::string("TELEOP_SUPERVISOR_BIN=") + SUPERVISOR_BIN, TELEOPCTL_PATH, "launch",
                   config.string(), "--record-dir", (dir.path() / "sessions").string()},
                  dir.path() / "launch.log");
+  // Whatever fails below, the launch is stopped with Ctrl-C (SIGKILL would orphan its nodes).
+  struct CtrlCAtEnd {
+    Process& p;
+    bool done{false};
+    ~CtrlCAtEnd() {
+      if (!done) {
+        p.signal(SIGINT);
+        (void)p.wait();
+      }
+    }
+  } stop_launch{launch};
   ASSERT_TRUE(eventually([&] {
     return launch.log().find("Ctrl-C stops both nodes.") != std::string::npos;
   })) << launch.log();
   ASSERT_NE(launch.log().find("\nengaged\n"), std::string::npos) << launch.log();
 
-  // The keys: one private directory per launch, every secret key 0600.
-  fs::path keys;
-  for (const auto& e : fs::directory_iterator(runtime)) keys = e.path();
-  ASSERT_FALSE(keys.empty()) << launch.log();
-  EXPECT_EQ(mode_of(runtime), 0700u);
-  EXPECT_EQ(mode_of(keys), 0700u);
-  for (const char* name : {"master", "slave", "supervisor", "console"}) {
-    EXPECT_EQ(mode_of(keys / (std::string(name) + ".key")), 0600u) << name;
-  }
-
-  // A keyed tap (the console's key) hears the master; a plaintext one hears nothing in the
-  // same time, and plaintext requests to every command and request endpoint get no reply.
+  // Plaintext requests to every command and request endpoint get no reply.
   zmq::context_t ctx(1);
-  const transport::CurveKeyPair console = transport::load_secret_key_file(keys / "console.key");
-  const std::string master_pub = transport::load_public_key((keys / "master.pub").string());
-  TelemetryTap keyed(ctx, tcp(p.nodes.master_telemetry), [&](zmq::socket_t& s) {
-    s.set(zmq::sockopt::curve_serverkey, master_pub);
-    s.set(zmq::sockopt::curve_publickey, console.public_z85);
-    s.set(zmq::sockopt::curve_secretkey, console.secret_z85);
-  });
-  TelemetryTap plain(ctx, tcp(p.nodes.master_telemetry));
   v1::NodeCommand status;
   status.set_kind(v1::NodeCommand::STATUS);
   for (const int port : {p.nodes.master_command, p.nodes.slave_command}) {
@@ -520,6 +517,27 @@ TEST(HostileEstopLaunch, LaunchWithoutKeysRefusesPlaintextClientsAndTheLocalClie
   sreq.mutable_status();
   EXPECT_FALSE(plaintext_request(ctx, tcp(p.request), sreq.SerializeAsString(), 1000).has_value())
       << "a plaintext client was answered by the supervisor";
+  // The keys: one private directory per launch, every secret key 0600.
+  ASSERT_TRUE(fs::is_directory(runtime)) << launch.log();
+  fs::path keys;
+  for (const auto& e : fs::directory_iterator(runtime)) keys = e.path();
+  ASSERT_FALSE(keys.empty()) << launch.log();
+  EXPECT_EQ(mode_of(runtime), 0700u);
+  EXPECT_EQ(mode_of(keys), 0700u);
+  for (const char* name : {"master", "slave", "supervisor", "console"}) {
+    EXPECT_EQ(mode_of(keys / (std::string(name) + ".key")), 0600u) << name;
+  }
+
+  // A keyed tap (the console's key) hears the master; a plaintext one hears nothing in the
+  // same time.
+  const transport::CurveKeyPair console = transport::load_secret_key_file(keys / "console.key");
+  const std::string master_pub = transport::load_public_key((keys / "master.pub").string());
+  TelemetryTap keyed(ctx, tcp(p.nodes.master_telemetry), [&](zmq::socket_t& s) {
+    s.set(zmq::sockopt::curve_serverkey, master_pub);
+    s.set(zmq::sockopt::curve_publickey, console.public_z85);
+    s.set(zmq::sockopt::curve_secretkey, console.secret_z85);
+  });
+  TelemetryTap plain(ctx, tcp(p.nodes.master_telemetry));
   ASSERT_TRUE(keyed.wait_for([&](const v1::Telemetry&) { return keyed.messages() >= 50; }))
       << launch.log();
   EXPECT_EQ(plain.messages(), 0u);
@@ -552,11 +570,12 @@ TEST(HostileEstopLaunch, LaunchWithoutKeysRefusesPlaintextClientsAndTheLocalClie
   r = run(env + " " + TELEOPCTL_PATH + " estop " + config.string());
   EXPECT_EQ(r.exit_code, 0) << r.out;
   ASSERT_TRUE(keyed.wait_for_mode(v1::SAFE, 5s)) << r.out;
-  const Latency l = safe_latency(keyed, t0);
+  const Latency l = safe_latency(keyed, sent_instant(r.out).value_or(t0));
   ASSERT_TRUE(l.ns.has_value()) << l.why;
   EXPECT_LE(*l.ns, kTargetNs) << r.out;
 
   // Ctrl-C: all stop cleanly, the keys go.
+  stop_launch.done = true;
   launch.signal(SIGINT);
   EXPECT_EQ(launch.wait(), 0) << launch.log();
   EXPECT_FALSE(fs::exists(keys)) << keys;
