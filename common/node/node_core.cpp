@@ -247,7 +247,10 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
   in.peer_disengaged = have_peer_ && !peer_coupling(peer_.state.mode) && !in.peer_failed;
   in.coupling_refusal = coupling_refusal();
   const CycleOutputs out = machine_.step(in);
-  if (out.refused) coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
+  if (out.refused) {
+    last_refusal_.store(out.reason, std::memory_order_release);
+    coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
+  }
   const Mode mode = out.mode;
 
   if (mode != last_mode_) {
