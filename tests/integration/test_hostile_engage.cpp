@@ -196,8 +196,6 @@ double slave_stiffness_limit(const fs::path& config) {
     return 0.0;
   }
 }
-return j["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
-}
 
 TEST(HostileEngage, AConfigurationPredictedUnstableIsRefusedArmWithTheVerdict) {
   TempDir dir;
