@@ -29,8 +29,10 @@ struct SystemPorts {
 // The paper's paddles (node_harness), the supervisor on its ports, no recording.
 std::string system_config(const SystemPorts& p, const std::string& slave_extra = "",
                           const std::string& extra = "") {
-  return paddles_system(node_section(p.nodes, true), node_section(p.nodes, false), slave_extra,
-                        0.0) +
+  // Real-time loops where the kernel permits them: a starved loop's peer timeout is not the
+  // subject here.
+  return paddles_system(node_section(p.nodes, true, "", 80), node_section(p.nodes, false, "", 80),
+                        slave_extra, 0.0) +
          "supervisor { report_endpoint: \"" + tcp(p.report) + "\" request_endpoint: \"" +
          tcp(p.request) + "\" record: false }\n" + extra;
 }
@@ -159,22 +161,31 @@ TEST(HostileEngage, ASlaveWithOtherGainsIsRefusedArmAndEngageOnBothWithBothFinge
 
   // The supervisor: an alarm naming the three fingerprints and the differing field.
   std::optional<v1::Alarm> alarm;
+  std::string mismatch;
   ASSERT_TRUE(eventually([&] {
     const auto s = supervisor_status(ctx, ports.request);
     if (!s) return false;
     for (const v1::Alarm& a : s->recent_alarms()) {
       if (!alarm && a.kind() == "configuration") alarm = a;  // the newest
     }
-    return alarm.has_value() && !s->configuration_mismatch().empty();
+    // The mismatch in force names all three once the supervisor heard both nodes (its first
+    // alarm may predate the master's telemetry).
+    mismatch = s->configuration_mismatch();
+    return alarm.has_value() && mismatch.find("master ") != std::string::npos;
   })) << sys.logs();
-  std::cout << "supervisor: " << alarm->side() << ": " << alarm->message() << "\n";
+  EXPECT_NE(mismatch.find("supervisor " + hex(file_fp) + ", master " + hex(file_fp) + ", slave " +
+                          hex(slave_fp)),
+            std::string::npos)
+      << mismatch;
+  EXPECT_NE(mismatch.find("gains.kps (supervisor 600, master 600, slave 900)"), std::string::npos)
+      << mismatch;
+  std::cout << "supervisor: " << alarm->side() << ": " << alarm->message() << "\n"
+            << "in force: " << mismatch << "\n";
   EXPECT_EQ(alarm->side(), "slave");
   EXPECT_GE(alarm->severity(), v1::Alarm::WARNING);
   EXPECT_NE(alarm->message().find("supervisor " + hex(file_fp)), std::string::npos);
-  EXPECT_NE(alarm->message().find("master " + hex(file_fp)), std::string::npos);
   EXPECT_NE(alarm->message().find("slave " + hex(slave_fp)), std::string::npos);
-  EXPECT_NE(alarm->message().find("gains.kps (supervisor 600, master 600, slave 900)"),
-            std::string::npos)
+  EXPECT_NE(alarm->message().find("gains.kps (supervisor 600"), std::string::npos)
       << alarm->message();
   EXPECT_EQ(alarm->message().find("gains.kpm"), std::string::npos) << "only kps differs";
 }
