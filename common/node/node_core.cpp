@@ -276,7 +276,10 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
   in.own_stall = own_stall;
   in.coupling_refusal = coupling_refusal();
   const CycleOutputs out = machine_.step(in);
-  if (out.refused) coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
+  if (out.refused) {
+    last_refusal_.store(out.reason, std::memory_order_release);
+    coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
+  }
   const Mode mode = out.mode;
 
   if (mode != last_mode_) {

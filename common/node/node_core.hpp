@@ -214,6 +214,11 @@ class NodeCore {
   [[nodiscard]] std::uint64_t coupling_refusals() const noexcept {
     return coupling_refusals_.load(std::memory_order_acquire);
   }
+  // Why the newest of those was refused (set before the count moves; a static string or one
+  // of the settings').
+  [[nodiscard]] const char* last_coupling_refusal() const noexcept {
+    return last_refusal_.load(std::memory_order_acquire);
+  }
 
  private:
   [[nodiscard]] double master_command(Mode mode, double weight, double position_m,
@@ -251,6 +256,7 @@ class NodeCore {
   std::atomic<std::uint64_t> peer_fingerprint_{0};
   std::atomic<std::uint64_t> peer_change_id_{0};
   std::atomic<std::uint64_t> coupling_refusals_{0};
+  std::atomic<const char*> last_refusal_{""};
   std::atomic<std::uint64_t> active_change_id_{0};
 
   // RT-thread state.

@@ -115,7 +115,7 @@ std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string&
 // changes) named.
 std::string coupling_refusal_message(const node::NodeCore& core) {
   const node::NodeSettings& s = core.settings();
-  std::string m = std::string(core.mode_reason()) + " (own configuration fingerprint " +
+  std::string m = std::string(core.last_coupling_refusal()) + " (own configuration fingerprint " +
                   config::fingerprint_hex(s.config_fingerprint) + ", peer's " +
                   (core.peer_fingerprint() == 0 ? std::string("none")
                                                 : config::fingerprint_hex(core.peer_fingerprint()));
