@@ -172,11 +172,17 @@ void SocketMonitor::check_budgets(std::vector<std::map<int, Tracked>>& tracked, 
       ++it;
     }
   }
+  // What cut or flooding connections held (their queued messages, the publisher's trie) goes
+  // back to the system, so a flood leaves no lasting (and, under mlockall, locked) growth:
+  // trimmed at once and every 100 ms for 2 s after, while the sockets' threads drain what
+  // was queued before the cut.
   if (trim) {
-    // What the cut connections held (the publisher's trie) goes back to the system, so a
-    // flood leaves no lasting (and, under mlockall, locked) growth.
-    (void)::malloc_trim(0);
+    trim_until_ = now + std::chrono::seconds(2);
     trim = false;
+  }
+  if (now < trim_until_ && now >= next_trim_) {
+    (void)::malloc_trim(0);
+    next_trim_ = now + std::chrono::milliseconds(100);
   }
 }
 

@@ -85,6 +85,8 @@ class SocketMonitor {
   std::vector<zmq::socket_t> pairs_;
   std::atomic<bool> running_{true};
   std::array<std::atomic<std::uint64_t>, 5> counts_{};
+  std::chrono::steady_clock::time_point trim_until_{};
+  std::chrono::steady_clock::time_point next_trim_{};
   std::thread thread_;
 };
 
