@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <deque>
+#include <functional>
 #include <iostream>
 #include <optional>
 #include <stdexcept>
@@ -66,6 +67,25 @@ bool fifo_permitted(int priority) {
   });
   probe.join();
   return ok;
+}
+
+// A link thread's body, run again (after a pause) whenever it throws: no exception ends a thread
+// (std::terminate would abort the node), whatever a peer sends (issue 14 finding 4).
+template <typename Body>
+std::function<void()> keep_running(const char* name, const std::atomic<bool>& running, Body body) {
+  return [name, &running, body = std::move(body)]() mutable {
+    while (running.load()) {
+      try {
+        body();
+        return;
+      } catch (const std::exception& e) {
+        spdlog::error("{} thread: {} (carrying on)", name, e.what());
+      } catch (...) {
+        spdlog::error("{} thread: unknown exception (carrying on)", name);
+      }
+      std::this_thread::sleep_for(10ms);
+    }
+  };
 }
 
 // A parameter update as the RT core takes it; nullopt with the reason when a value is unusable.
@@ -241,7 +261,12 @@ void NodeApp::start() {
   m.monitor.emplace(
       m.ctx,
       std::vector<zmq::socket_t*>{&*m.state_pub, &*m.command_rep, &*m.telemetry_pub, &*m.state_sub},
-      setup_.settings.role == Role::kMaster ? "master" : "slave");
+      setup_.settings.role == Role::kMaster ? "master" : "slave",
+      // Each client within its budget (issue 14 finding 5; the state subscriber connects out).
+      std::vector<transport::InboundBudget>{transport::kSubscriberBudget,
+                                            transport::kCommandClientBudget,
+                                            transport::kSubscriberBudget,
+                                            {}});
   // Who may do what on the command endpoint (CURVE: each request carries its caller's key).
   m.authority = command_authority(
       setup_.keys,
@@ -264,7 +289,7 @@ void NodeApp::start() {
   node::NodeCore& core = *core_;
   // Sender: one send per loop cycle, woken by the loop's counter (a futex wake, no lock).
   const rt::RtSettings link_rt{link_priority, false, -1, false};
-  m.sender = std::thread([&m, &core, link_rt] {
+  m.sender = std::thread(keep_running("sender", m.running, [&m, &core, link_rt] {
     if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
     std::uint32_t seen = core.state_published().load(std::memory_order_acquire);
     transport::NodeStateRecord state;
@@ -274,28 +299,27 @@ void NodeApp::start() {
       if (!m.running.load()) break;
       if (!core.state_out().read(state)) continue;
       const std::string bytes = transport::encode(state);
-      (void)m.state_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+      // Never throws (a refused send is one state less; the next cycle sends the next one).
+      (void)transport::send_noexcept(*m.state_pub, bytes);
     }
-  });
+  }));
   // Receiver: every frame that arrived goes through the filter (each one counted); only the
   // newest accepted state reaches the loop, so it never works through a backlog.
-  m.receiver = std::thread([this, &m, &core, link_rt] {
+  m.receiver = std::thread(keep_running("receiver", m.running, [this, &m, &core, link_rt] {
     if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
     const Role expected = setup_.settings.role == Role::kMaster ? Role::kSlave : Role::kMaster;
     transport::PeerStateFilter filter(expected);
     zmq::message_t frame;
     while (m.running.load()) {
-      zmq::pollitem_t item{m.state_sub->handle(), 0, ZMQ_POLLIN, 0};
-      try {
-        if (zmq::poll(&item, 1, 20ms) <= 0) continue;
-      } catch (const zmq::error_t&) {
-        continue;
-      }
+      if (!transport::wait_readable(*m.state_sub, 20ms)) continue;
       std::optional<node::PeerSample> newest;
-      while (m.state_sub->recv(frame, zmq::recv_flags::dontwait)) {
+      for (transport::Received got;
+           (got = transport::receive_whole(*m.state_sub, frame)).parts > 0;) {
         const auto arrival = rt::PeriodicLoop::monotonic_now();
-        const auto accepted =
-            filter.accept(std::string_view(static_cast<const char*>(frame.data()), frame.size()));
+        // A multi-part message is no state: counted as malformed (an empty frame).
+        const auto accepted = filter.accept(
+            got.parts == 1 ? std::string_view(static_cast<const char*>(frame.data()), frame.size())
+                           : std::string_view());
         if (!accepted) continue;
         if (accepted->new_session) {
           spdlog::info("peer {} session {:016x}", expected == Role::kMaster ? "master" : "slave",
@@ -310,18 +334,25 @@ void NodeApp::start() {
       m.accepted.store(filter.accepted());
       m.lost.store(filter.lost());
     }
-  });
+  }));
   // Commands: apply through the loop, reply with the mode the loop reached.
-  m.commands = std::thread([this, &m, &core] {
+  m.commands = std::thread(keep_running("commands", m.running, [this, &m, &core] {
     while (m.running.load()) {
-      zmq::pollitem_t item{m.command_rep->handle(), 0, ZMQ_POLLIN, 0};
-      if (zmq::poll(&item, 1, 50ms) <= 0) continue;
+      if (!transport::wait_readable(*m.command_rep, 50ms)) continue;
       zmq::message_t request;
-      if (!m.command_rep->recv(request, zmq::recv_flags::dontwait)) continue;
+      // The whole request (every part), so the socket can always answer (issue 14 finding 4:
+      // a 2-part request left the REP mid-request and its reply threw EFSM, aborting the node).
+      const transport::Received got = transport::receive_whole(*m.command_rep, request);
+      if (!got.error.empty()) spdlog::warn("command endpoint: {}", got.error);
+      if (got.parts == 0) continue;
       v1::NodeCommand cmd;
       v1::NodeCommandReply reply;
       reply.set_role(to_proto(setup_.settings.role));
-      if (!cmd.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
+      if (got.parts != 1) {
+        reply.set_ok(false);
+        reply.set_message("malformed command: " + std::to_string(got.parts) +
+                          " parts (a command is one frame)");
+      } else if (!cmd.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
         reply.set_ok(false);
         reply.set_message("malformed command");
       } else if (const std::string refusal = command_refusal(
@@ -401,11 +432,14 @@ void NodeApp::start() {
       reply.set_pid(static_cast<std::uint32_t>(::getpid()));
       reply.set_session_id(setup_.settings.session_id);
       const std::string out = reply.SerializeAsString();
-      (void)m.command_rep->send(zmq::buffer(out), zmq::send_flags::dontwait);
+      std::string why;
+      if (!transport::send_noexcept(*m.command_rep, out, zmq::send_flags::dontwait, &why)) {
+        spdlog::warn("command endpoint: reply not sent: {}", why);
+      }
     }
-  });
+  }));
   // Telemetry: every cycle, batched; mode changes logged.
-  m.telemetry = std::thread([this, &m, &core] {
+  m.telemetry = std::thread(keep_running("telemetry", m.running, [this, &m, &core] {
     const auto period =
         std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
     auto next = std::chrono::steady_clock::now() + period;
@@ -514,6 +548,7 @@ void NodeApp::start() {
       k->set_connections_closed(conn.closed);
       k->set_handshakes_failed(conn.handshakes_failed);
       k->set_handshakes_refused_auth(conn.auth_failed);
+      k->set_connections_cut_over_budget(conn.cut_over_budget);
       v1::RtStatus* r = t.mutable_rt();
       r->set_fifo_priority(setup_.rt.fifo_priority);
       r->set_memory_locked(setup_.rt.lock_memory);
@@ -529,9 +564,9 @@ void NodeApp::start() {
         flight_reason.clear();
       }
       const std::string bytes = t.SerializeAsString();
-      (void)m.telemetry_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+      (void)transport::send_noexcept(*m.telemetry_pub, bytes);
     }
-  });
+  }));
 
   const auto hook = options_.after_step;
   m.loop = std::make_unique<rt::PeriodicLoop>(setup_.settings.period, setup_.rt,

@@ -60,6 +60,12 @@ inline constexpr int kStateReceiveHwm = 1000;
 // libzmq drops the connection of a peer that sends a larger one before allocating it, so an
 // oversized frame never costs the receiver its memory nor reaches a parser.
 inline constexpr std::int64_t kMaxInboundMessageBytes = 64 * 1024;
+// The largest frame a publisher (PUB, XPUB) accepts: a publisher's only inbound traffic is the
+// handshake (a CURVE INITIATE with its metadata is ~300 B) and subscriptions (ours: one, empty).
+// libzmq keeps every subscription in a trie, one node per byte, built on the thread that sends:
+// without a limit one 1 MB subscription is a million allocations on the node's sender thread
+// (measured: the link stalls past its peer timeout and both nodes go safe, issue 14 finding 5).
+inline constexpr std::int64_t kMaxPublisherInboundBytes = 1024;
 
 // A failed bind: the zmq::error_t (num() is the errno, EADDRINUSE for a port in use) whose
 // what() names the endpoint, e.g. "cannot bind tcp://127.0.0.1:5562: Address already in use".
@@ -114,6 +120,31 @@ void bind_or_throw(zmq::socket_t& socket, std::string_view endpoint);
 // multipart message are discarded with it.
 [[nodiscard]] std::optional<std::string> recv_latest(zmq::socket_t& socket,
                                                      std::chrono::milliseconds timeout);
+
+// The outcome of receive_whole(): how many parts the message had (0: nothing was pending or
+// libzmq refused; `error` then says why, empty when there was simply nothing).
+struct Received {
+  std::size_t parts{0};
+  std::string error{};
+};
+
+// Takes one whole message from `socket` without waiting: its first part into `first`, every
+// further part received and discarded, so that a server socket (REP) is always ready to
+// reply and never left in the middle of a request. A multi-part request is the caller's to
+// refuse (parts > 1): ZeroMQ delivers a message atomically, so the rest never has to be waited
+// for. Never throws: a REP found in its reply state (a reply that could not go out) is put
+// back to receiving with an empty reply, and the error reported.
+[[nodiscard]] Received receive_whole(zmq::socket_t& socket, zmq::message_t& first) noexcept;
+
+// Sends one single-part message without waiting and without throwing: false (the reason in
+// `error` when given) when libzmq refused it or the queue was full.
+bool send_noexcept(zmq::socket_t& socket, std::string_view bytes,
+                   zmq::send_flags flags = zmq::send_flags::dontwait,
+                   std::string* error = nullptr) noexcept;
+
+// Waits up to `timeout` for `socket` to be readable; false on timeout, signal or error (never
+// throws).
+[[nodiscard]] bool wait_readable(zmq::socket_t& socket, std::chrono::milliseconds timeout) noexcept;
 
 // Sends `request` on a command client and waits for the reply within the socket's timeouts;
 // empty on timeout, after which the socket can send the next request at once.

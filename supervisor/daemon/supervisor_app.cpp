@@ -18,6 +18,7 @@
 #include <zmq.hpp>
 
 #include "common/config/node_loader.hpp"
+#include "common/transport/socket_monitor.hpp"
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
@@ -137,6 +138,8 @@ struct SupervisorApp::Impl {
     zmq::socket_t s(ctx, zmq::socket_type::sub);
     s.set(zmq::sockopt::linger, 0);
     s.set(zmq::sockopt::rcvhwm, 10000);
+    // A node's telemetry with its flight record (10 s of cycles) is ~1-2 MB.
+    s.set(zmq::sockopt::maxmsgsize, std::int64_t{16} << 20);
     (void)transport::apply_link_security(ctx, s, endpoint, transport::LinkRole::kClient, sec);
     s.set(zmq::sockopt::subscribe, "");
     s.connect(endpoint);
@@ -172,6 +175,15 @@ struct SupervisorApp::Impl {
     return r;
   }
 
+  // One topic-tagged message on the report endpoint; never throws (a refused send is dropped,
+  // as a full queue drops it).
+  void publish(std::string_view topic, const std::string& bytes) {
+    if (transport::send_noexcept(*report_pub, topic,
+                                 zmq::send_flags::sndmore | zmq::send_flags::dontwait)) {
+      (void)transport::send_noexcept(*report_pub, bytes);
+    }
+  }
+
   // --- recording ---------------------------------------------------------------------------
   void record(const std::string& topic, const google::protobuf::Message& m) {
     if (!opts.sink) return;
@@ -193,9 +205,7 @@ struct SupervisorApp::Impl {
     const Assessment& a = guard.assess(live);
     report = make_report(a, reason);
     const std::string bytes = report.SerializeAsString();
-    (void)report_pub->send(zmq::str_buffer("report"),
-                           zmq::send_flags::sndmore | zmq::send_flags::dontwait);
-    (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+    publish("report", bytes);
     record("/supervisor/stability", report);
     spdlog::info("stability: {} (min damping ratio {:.4f}, round trip {} samples) [{}]",
                  report.verdict(), report.min_damping_ratio(), report.round_trip_samples(), reason);
@@ -233,9 +243,7 @@ struct SupervisorApp::Impl {
     recent_alarms.push_front(a);
     while (recent_alarms.size() > 50) recent_alarms.pop_back();
     const std::string bytes = a.SerializeAsString();
-    (void)report_pub->send(zmq::str_buffer("alarm"),
-                           zmq::send_flags::sndmore | zmq::send_flags::dontwait);
-    (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+    publish("alarm", bytes);
     record("/supervisor/alarms", a);
     std::string ev;
     for (const auto& [name, value, unit] : evidence)
@@ -862,27 +870,49 @@ struct SupervisorApp::Impl {
           {{"stall", static_cast<double>(gap) * 1e-9, "s"}});
   }
 
+  // Binds, connects and announces; then loop() until `stop`. Nothing a client or a node sends
+  // ends the supervisor: an iteration that throws is logged and the loop goes on (issue 14
+  // finding 4); a failure to start is the caller's.
   void run(const std::atomic<bool>& stop) {
+    start();
+    while (!stop.load()) {
+      try {
+        loop(stop);
+      } catch (const std::exception& e) {
+        spdlog::error("main loop: {} (carrying on)", e.what());
+      }
+    }
+    spdlog::info("stopping");
+  }
+
+  void start() {
     zap.emplace(ctx);
     report_pub.emplace(
         transport::make_telemetry_publisher(ctx, report_endpoint, server_security()));
     request_rep.emplace(transport::make_command_server(ctx, request_endpoint, server_security()));
-    zmq::socket_t master_sub =
-        subscribe(master_setup.endpoints.telemetry, loaded.config.security().master_public_key());
-    zmq::socket_t slave_sub =
-        subscribe(slave_setup.endpoints.telemetry, loaded.config.security().slave_public_key());
+    // Each client within its budget (issue 14 finding 5).
+    monitor.emplace(ctx, std::vector<zmq::socket_t*>{&*report_pub, &*request_rep}, "supervisor",
+                    std::vector<transport::InboundBudget>{transport::kSubscriberBudget,
+                                                          transport::kCommandClientBudget});
+    master_sub.emplace(
+        subscribe(master_setup.endpoints.telemetry, loaded.config.security().master_public_key()));
+    slave_sub.emplace(
+        subscribe(slave_setup.endpoints.telemetry, loaded.config.security().slave_public_key()));
     record("/config", loaded.config);
     publish_report("start");
     announce_record_failure();
     spdlog::info("supervising master {} and slave {}; reports on {}, requests on {}",
                  master_setup.endpoints.telemetry, slave_setup.endpoints.telemetry, report_endpoint,
                  request_endpoint);
-    std::int64_t next_check = monotonic_ns();
+    next_check = monotonic_ns();
+  }
+
+  void loop(const std::atomic<bool>& stop) {
     while (!stop.load()) {
       iterations.fetch_add(1, std::memory_order_relaxed);
       excuse_own_stall();
-      zmq::pollitem_t items[] = {{master_sub.handle(), 0, ZMQ_POLLIN, 0},
-                                 {slave_sub.handle(), 0, ZMQ_POLLIN, 0},
+      zmq::pollitem_t items[] = {{master_sub->handle(), 0, ZMQ_POLLIN, 0},
+                                 {slave_sub->handle(), 0, ZMQ_POLLIN, 0},
                                  {request_rep->handle(), 0, ZMQ_POLLIN, 0}};
       try {
         (void)zmq::poll(items, 3, 20ms);
@@ -891,14 +921,19 @@ struct SupervisorApp::Impl {
       }
       zmq::message_t msg;
       for (int i = 0; i < 2; ++i) {
-        zmq::socket_t& sock = i == 0 ? master_sub : slave_sub;
-        while (sock.recv(msg, zmq::recv_flags::dontwait)) {
+        zmq::socket_t& sock = i == 0 ? *master_sub : *slave_sub;
+        for (transport::Received got; (got = transport::receive_whole(sock, msg)).parts > 0;) {
           v1::Telemetry t;
-          if (!t.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) continue;
+          if (got.parts != 1 || !t.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) {
+            continue;
+          }
           on_telemetry(i == 0 ? master : slave, t, i == 0);
         }
       }
-      if (request_rep->recv(msg, zmq::recv_flags::dontwait)) {
+      // The whole request, every part of it, so the socket can always answer (issue 14
+      // finding 4: a 2-part request made the reply throw EFSM, which ended the supervisor).
+      if (const transport::Received got = transport::receive_whole(*request_rep, msg);
+          got.parts > 0) {
         v1::SupervisorRequest req;
         v1::SupervisorReply reply;
         std::string key;
@@ -908,7 +943,10 @@ struct SupervisorApp::Impl {
         } catch (const zmq::error_t&) {
           // No ZAP user id (plaintext on loopback): a local client, not read-only.
         }
-        if (!req.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) {
+        if (got.parts != 1) {
+          reply.set_error("malformed request: " + std::to_string(got.parts) +
+                          " parts (a request is one frame)");
+        } else if (!req.ParseFromArray(msg.data(), static_cast<int>(msg.size()))) {
           reply.set_error("malformed request");
         } else if (const std::string why = read_only_refusal(req, key); !why.empty()) {
           reply.set_error(why);
@@ -927,7 +965,10 @@ struct SupervisorApp::Impl {
           }
         }
         const std::string out = reply.SerializeAsString();
-        (void)request_rep->send(zmq::buffer(out), zmq::send_flags::dontwait);
+        std::string why;
+        if (!transport::send_noexcept(*request_rep, out, zmq::send_flags::dontwait, &why)) {
+          spdlog::warn("request endpoint: reply not sent: {}", why);
+        }
       }
       if (monotonic_ns() >= next_check) {
         next_check += 100'000'000;
@@ -949,9 +990,7 @@ struct SupervisorApp::Impl {
         v1::SupervisorStatus st;
         fill_status(st, false);
         const std::string bytes = st.SerializeAsString();
-        (void)report_pub->send(zmq::str_buffer("status"),
-                               zmq::send_flags::sndmore | zmq::send_flags::dontwait);
-        (void)report_pub->send(zmq::buffer(bytes), zmq::send_flags::dontwait);
+        publish("status", bytes);
         // Once a second the supervisor's own status goes into the session: the recorder's
         // drops and counts, the nodes' liveness, the report in force.
         if (++checks % 10 == 0 && opts.sink) {
@@ -961,7 +1000,6 @@ struct SupervisorApp::Impl {
         }
       }
     }
-    spdlog::info("stopping");
   }
 
   config::LoadedConfig loaded;
@@ -984,6 +1022,11 @@ struct SupervisorApp::Impl {
   std::optional<transport::ZapHandler> zap{};
   std::optional<zmq::socket_t> report_pub{};
   std::optional<zmq::socket_t> request_rep{};
+  std::optional<zmq::socket_t> master_sub{};
+  std::optional<zmq::socket_t> slave_sub{};
+  std::int64_t next_check{0};
+  // After the sockets: stopped (destroyed) before they close.
+  std::optional<transport::SocketMonitor> monitor{};
   NodeView master{};
   NodeView slave{};
   LiveInputs live{};

@@ -9,6 +9,7 @@
 #include <optional>
 #include <zmq.hpp>
 
+#include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
 
@@ -134,12 +135,15 @@ int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostr
     zmq::socket_t sub(ctx, zmq::socket_type::sub);
     sub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::rcvhwm, 100000);
+    sub.set(zmq::sockopt::maxmsgsize, std::int64_t{16} << 20);
     sub.set(zmq::sockopt::reconnect_ivl, 10);
     sub.set(zmq::sockopt::subscribe, "");
     sub.connect(from);
     zmq::socket_t pub(ctx, zmq::socket_type::pub);
     pub.set(zmq::sockopt::linger, 0);
     pub.set(zmq::sockopt::sndhwm, 100000);
+    // Its only inbound traffic is the handshake and subscriptions (see zmq_sockets.hpp).
+    pub.set(zmq::sockopt::maxmsgsize, transport::kMaxPublisherInboundBytes);
     try {
       pub.bind(to);
     } catch (const zmq::error_t& e) {

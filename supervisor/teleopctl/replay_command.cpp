@@ -1079,6 +1079,8 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
     s.set(zmq::sockopt::linger, 0);
     s.set(zmq::sockopt::sndhwm, 100000);
     s.set(zmq::sockopt::xpub_verbose, 1);
+    // Its only inbound traffic is the handshake and subscriptions (see zmq_sockets.hpp).
+    s.set(zmq::sockopt::maxmsgsize, transport::kMaxPublisherInboundBytes);
     (void)transport::apply_link_security(ctx, s, ep, transport::LinkRole::kServer, security);
     try {
       s.bind(ep);
@@ -1201,13 +1203,22 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
     }
     zmq::message_t msg;
     for (std::size_t i = 0; i < pubs.size(); ++i) {
-      while (pubs[i].recv(msg, zmq::recv_flags::dontwait)) {
+      while (transport::receive_whole(pubs[i], msg).parts > 0) {
         if (msg.size() > 0 && static_cast<const unsigned char*>(msg.data())[0] == 1) {
           ++subscriptions[i];
         }
       }
     }
-    if (!control.recv(msg, zmq::recv_flags::dontwait)) continue;
+    // The whole request (every part), so the control socket can always answer: a multi-part
+    // one is refused (issue 14 finding 4's sibling).
+    const transport::Received got = transport::receive_whole(control, msg);
+    if (got.parts == 0) continue;
+    if (got.parts != 1) {
+      (void)transport::send_noexcept(
+          control,
+          fmt::format("error: malformed request: {} parts (a request is one frame)", got.parts));
+      continue;
+    }
     const std::string request = msg.to_string();
     std::string reply;
     // Everything due up to now goes out first, so the reply's position and counts agree.
@@ -1232,7 +1243,7 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
         anchor_wall = Clock::now();
         playing = !playing && next < items.size();
         reply = status(state_name(), p);
-      } else if (verb == "seek" && words.size() == 2) {
+      } else if (verb == "seek" && words.size() == 2 && !words[1].empty()) {
         // "seek 12.5" goes to 12.5 s; "seek +5" / "seek -5" moves from where the replay is
         // (clamped to the file), so that keys pressed quickly add up.
         const bool relative = words[1].front() == '+' || words[1].front() == '-';
@@ -1245,7 +1256,7 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
         next = 0;
         while (next < items.size() && pos_of(next) < anchor_pos) ++next;
         reply = status(state_name(), anchor_pos);
-      } else if (verb == "speed" && words.size() == 2) {
+      } else if (verb == "speed" && words.size() == 2 && !words[1].empty()) {
         // "speed 2" plays at 2x; "speed x2" / "speed x0.5" multiplies the speed in force.
         const bool factor = words[1].front() == 'x';
         double x = parse_number(factor ? words[1].substr(1) : words[1], "speed");
@@ -1266,10 +1277,10 @@ int replay_live(const record::McapReader& reader, const ReplayArgs& a, std::ostr
             "speed X|xF, status, stop)",
             request);
       }
-    } catch (const UsageError& e) {
+    } catch (const std::exception& e) {
       reply = fmt::format("error: {}", e.what());
     }
-    (void)control.send(zmq::buffer(reply), zmq::send_flags::dontwait);
+    (void)transport::send_noexcept(control, reply);
     // A console sees a pause, seek or change of speed at once, not up to 100 ms later.
     if (verb != "status") next_summary = Clock::now();
   }

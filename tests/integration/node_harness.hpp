@@ -166,12 +166,24 @@ class Process {
   Process& operator=(const Process&) = delete;
 
   void signal(int sig) const { ::kill(pid_, sig); }
+  [[nodiscard]] pid_t pid() const { return pid_; }
+  // The exit status (or 128 + signal) if the process has ended, without waiting.
+  [[nodiscard]] std::optional<int> exited() {
+    if (waited_) return exit_status_;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) != pid_) return std::nullopt;
+    waited_ = true;
+    exit_status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    return exit_status_;
+  }
   // Exit status (or 128 + signal).
   int wait() {
+    if (waited_) return exit_status_;
     int status = 0;
     ::waitpid(pid_, &status, 0);
     waited_ = true;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    exit_status_ = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+    return exit_status_;
   }
   [[nodiscard]] std::string log() const {
     std::ifstream in(log_);
@@ -184,6 +196,7 @@ class Process {
   std::filesystem::path log_;
   pid_t pid_{-1};
   bool waited_{false};
+  int exit_status_{0};
 };
 
 // Bounded wait (against a hang) for a condition polled every few ms; true once it holds.
