@@ -21,7 +21,7 @@ struct Value {
   double (*get)(const v1::ActiveParameters&);
 };
 
-std::vector<Value> values(const ApprovedParameters& a) {
+std::vector<Value> values(const ApprovedConfiguration& a) {
   const Gains& g = a.gains;
   return {
       {"gains.kpm", g.kpm, [](const v1::ActiveParameters& p) { return p.gains().kpm(); }},
@@ -44,7 +44,7 @@ bool settled(const v1::Telemetry* t) {
 
 }  // namespace
 
-ConfigurationMismatch compare_configurations(std::uint64_t own, const ApprovedParameters& approved,
+ConfigurationMismatch compare_configurations(std::uint64_t own, const ApprovedConfiguration& approved,
                                              const v1::Telemetry* master,
                                              const v1::Telemetry* slave) {
   ConfigurationMismatch out;

@@ -13,7 +13,7 @@
 namespace teleop::supervisor {
 
 // What the supervisor approved: the file's values (change 0) or its newest guarded change.
-struct ApprovedParameters {
+struct ApprovedConfiguration {
   std::uint64_t change_id{0};
   Gains gains{};
   double master_fixture_N_per_m{0.0};
@@ -30,7 +30,7 @@ struct ConfigurationMismatch {
 //   "configuration fingerprints differ: supervisor 1a.., master 1a.., slave 3c..; differing:
 //    gains.kps (supervisor 600, master 600, slave 900)"
 [[nodiscard]] ConfigurationMismatch compare_configurations(std::uint64_t own,
-                                                           const ApprovedParameters& approved,
+                                                           const ApprovedConfiguration& approved,
                                                            const v1::Telemetry* master,
                                                            const v1::Telemetry* slave);
 

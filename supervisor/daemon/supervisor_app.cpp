@@ -426,7 +426,7 @@ struct SupervisorApp::Impl {
   // difference (new or changed) is an alarm naming the fingerprints and, where telemetry shows
   // them, the fields.
   void check_configurations() {
-    ApprovedParameters approved;
+    ApprovedConfiguration approved;
     approved.change_id = change_id;
     approved.gains = live.gains;
     approved.master_fixture_N_per_m = live.master_fixture_N_per_m;

@@ -23,8 +23,8 @@ v1::Telemetry node(std::uint64_t fingerprint, double kps, std::uint64_t change =
   return t;
 }
 
-ApprovedParameters file() {
-  ApprovedParameters a;
+ApprovedConfiguration file() {
+  ApprovedConfiguration a;
   a.gains = Gains{600, 600, 2, 2, 0, 0, 0};
   a.slave_fixture_N_per_m = 1000;
   return a;
