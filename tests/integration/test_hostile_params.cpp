@@ -5,7 +5,9 @@
 // code: a gain of 1e308 N/m or a negative gain is no teleoperator; port 99999 does not exist.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
+#include <functional>
 #include <regex>
 #include <string>
 #include <vector>
