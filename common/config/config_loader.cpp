@@ -23,6 +23,8 @@
 #include <utility>
 #include <variant>
 
+#include "common/config/parameter_space.hpp"
+
 namespace teleop::config {
 namespace {
 
@@ -562,57 +564,46 @@ void set_scalar(pb::Message& message, const pb::FieldDescriptor* field, const Sc
 // ---------------------------------------------------------------------------------------------
 // Validation
 
-// Every floating-point value anywhere in the message must be finite: protobuf's text parser
-// accepts nan and inf.
-void check_finite(const pb::Message& message, FieldPath& path, Problems& problems) {
-  const pb::Descriptor* type = message.GetDescriptor();
-  const pb::Reflection* r = message.GetReflection();
-  for (int i = 0; i < type->field_count(); ++i) {
-    const pb::FieldDescriptor* field = type->field(i);
-    const auto cpp = field->cpp_type();
-    const bool is_float =
-        cpp == pb::FieldDescriptor::CPPTYPE_DOUBLE || cpp == pb::FieldDescriptor::CPPTYPE_FLOAT;
-    const bool is_message = cpp == pb::FieldDescriptor::CPPTYPE_MESSAGE;
-    if (!is_float && !is_message) continue;
-    const auto value_at = [&](int index) {
-      if (cpp == pb::FieldDescriptor::CPPTYPE_FLOAT) {
-        return static_cast<double>(index < 0 ? r->GetFloat(message, field)
-                                             : r->GetRepeatedFloat(message, field, index));
-      }
-      return index < 0 ? r->GetDouble(message, field) : r->GetRepeatedDouble(message, field, index);
-    };
-    const auto visit = [&](int index) {
-      path.push_back({field, index});
-      if (is_message) {
-        check_finite(index < 0 ? r->GetMessage(message, field)
-                               : r->GetRepeatedMessage(message, field, index),
-                     path, problems);
-      } else if (const double value = value_at(index); !std::isfinite(value)) {
-        problems.add(path, "must be finite, got " + format_float(value));
-      }
-      path.pop_back();
-    };
-    if (field->is_repeated()) {
-      for (int index = 0; index < r->FieldSize(message, field); ++index) visit(index);
-    } else if (!field->has_presence() || r->HasField(message, field)) {
-      visit(-1);
+// Every numeric value anywhere in the configuration, by the one parameter space
+// (parameter_space.hpp): finite, and the sign and range config.proto documents for the field.
+void check_fields(const pb::Message& message, Problems& problems) {
+  for (const FieldProblem& p : teleop::config::check_fields(message)) {
+    problems.add(p.path, p.message);
+  }
+}
+
+// Endpoints: each well formed (tcp ports 1-65535), and every bound one distinct from the others.
+void check_endpoints(const teleop::v1::SystemConfig& c, Problems& problems) {
+  const std::vector<BoundEndpoint> bound = bound_endpoints(c);
+  for (const BoundEndpoint& e : bound) {
+    if (e.defaulted) continue;
+    if (const std::string why = check_endpoint(e.endpoint); !why.empty()) {
+      problems.add(e.path, why);
+    }
+  }
+  for (const char* side : {"master", "slave"}) {
+    const teleop::v1::Node& node =
+        std::string_view(side) == "master" ? c.master().node() : c.slave().node();
+    if (node.peer_state_endpoint().empty()) continue;
+    if (const std::string why = check_endpoint(node.peer_state_endpoint()); !why.empty()) {
+      problems.add(std::string(side) + ".node.peer_state_endpoint", why);
+    }
+  }
+  for (std::size_t i = 0; i < bound.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j) {
+      if (!endpoints_clash(bound[i].endpoint, bound[j].endpoint)) continue;
+      // Name the one written by the user (a default clashing with a written one).
+      const BoundEndpoint& named = bound[i].defaulted && !bound[j].defaulted ? bound[j] : bound[i];
+      const BoundEndpoint& other = &named == &bound[i] ? bound[j] : bound[i];
+      problems.add(named.path, "\"" + named.endpoint + "\" is also " + other.path +
+                                   (other.defaulted ? " (its default)" : "") +
+                                   ": every bound endpoint must be distinct");
     }
   }
 }
 
-// Range checks skip non-finite values: check_finite has reported them.
-void require_positive(Problems& problems, std::string_view path, double value) {
-  if (std::isfinite(value) && !(value > 0.0)) {
-    problems.add(path, "must be > 0, got " + format_float(value));
-  }
-}
-
-void require_non_negative(Problems& problems, std::string_view path, double value) {
-  if (std::isfinite(value) && value < 0.0) {
-    problems.add(path, "must be >= 0, got " + format_float(value));
-  }
-}
-
+// Signs and ranges of single fields are check_fields' (the parameter space); what follows are
+// the rules that involve presence or more than one field.
 void require_present(Problems& problems, std::string_view path, bool present,
                      std::string_view why) {
   if (!present) problems.add(path, "missing (" + std::string(why) + ")");
@@ -623,14 +614,6 @@ void check_device(Problems& problems, const std::string& side, const teleop::v1:
     const std::string prefix = side + ".device.";
     require_present(problems, prefix + "mass_kg", config.device().has_mass_kg(),
                     "a device needs its mass");
-    if (config.device().has_mass_kg()) {
-      require_positive(problems, prefix + "mass_kg", config.device().mass_kg());
-    }
-    require_non_negative(problems, prefix + "damping_Ns_per_m", config.device().damping_ns_per_m());
-  }
-  if (config.has_fixture()) {
-    require_non_negative(problems, side + ".fixture.stiffness_N_per_m",
-                         config.fixture().stiffness_n_per_m());
   }
 }
 
@@ -638,10 +621,6 @@ void check_band(Problems& problems, const teleop::v1::HumanBand& band) {
   const std::string prefix = "human.band.";
   if (band.force_levels_n_size() == 0) {
     problems.add(prefix + "force_levels_N", "missing (a band needs at least one force level)");
-  }
-  for (int i = 0; i < band.force_levels_n_size(); ++i) {
-    require_non_negative(problems, prefix + "force_levels_N[" + std::to_string(i) + "]",
-                         band.force_levels_n(i));
   }
   if (band.has_points_per_axis() &&
       (band.points_per_axis() < 2 || band.points_per_axis() > kMaxPointsPerAxis)) {
@@ -672,9 +651,15 @@ void check_band(Problems& problems, const teleop::v1::HumanBand& band) {
     if (!axis.bounds.has_lower() || !axis.bounds.has_upper()) continue;
     const LinearBound lower{axis.bounds.lower().intercept(), axis.bounds.lower().slope_per_n()};
     const LinearBound upper{axis.bounds.upper().intercept(), axis.bounds.upper().slope_per_n()};
+    // The values the lines give obey the fixed human's rule of the same axis (one parameter
+    // space): its ceiling.
+    const FieldRule* rule =
+        rule_for(teleop::v1::HumanImpedance::descriptor()->FindFieldByName(axis.name));
+    const double ceiling = rule != nullptr ? rule->max : std::numeric_limits<double>::max();
     // One report per axis: the first force level where each rule fails.
     bool lower_reported = false;
     bool order_reported = false;
+    bool ceiling_reported = false;
     for (const double force_N : band.force_levels_n()) {
       const double low = lower.at(force_N);
       const double high = upper.at(force_N);
@@ -687,6 +672,11 @@ void check_band(Problems& problems, const teleop::v1::HumanBand& band) {
                                           ", got " + format_float(low));
         lower_reported = true;
       }
+      if (!(high <= ceiling) && !ceiling_reported) {
+        problems.add(path + ".upper",
+                     "must be <= " + format_float(ceiling) + at + ", got " + format_float(high));
+        ceiling_reported = true;
+      }
       if (low > high && !order_reported) {
         problems.add(path, "lower bound " + format_float(low) + " exceeds upper bound " +
                                format_float(high) + at);
@@ -697,15 +687,10 @@ void check_band(Problems& problems, const teleop::v1::HumanBand& band) {
 }
 
 void check_ranges(const teleop::v1::SystemConfig& c, Problems& problems) {
-  if (c.has_sample_rate_hz()) require_positive(problems, "sample_rate_hz", c.sample_rate_hz());
   if (c.has_master()) check_device(problems, "master", c.master());
   if (c.has_slave()) check_device(problems, "slave", c.slave());
   if (c.has_scaling() && c.scaling().has_position() && c.scaling().position() == 0.0) {
     problems.add("scaling.position", "must not be 0 (the slave would not follow the master)");
-  }
-  if (c.has_velocity_filter()) {
-    const double cutoff_hz = c.velocity_filter().cutoff_hz();
-    require_non_negative(problems, "velocity_filter.cutoff_hz", cutoff_hz);
   }
   if (c.has_round_trip_delay_samples() &&
       (c.round_trip_delay_samples() < 0 || c.round_trip_delay_samples() > kMaxDelaySamples)) {
@@ -717,11 +702,6 @@ void check_ranges(const teleop::v1::SystemConfig& c, Problems& problems) {
     const teleop::v1::Human& human = c.human();
     switch (human.kind_case()) {
       case teleop::v1::Human::kFixed:
-        require_non_negative(problems, "human.fixed.mass_kg", human.fixed().mass_kg());
-        require_non_negative(problems, "human.fixed.damping_Ns_per_m",
-                             human.fixed().damping_ns_per_m());
-        require_non_negative(problems, "human.fixed.stiffness_N_per_m",
-                             human.fixed().stiffness_n_per_m());
         break;
       case teleop::v1::Human::kBand:
         check_band(problems, human.band());
@@ -738,17 +718,8 @@ void check_ranges(const teleop::v1::SystemConfig& c, Problems& problems) {
   if (c.has_force_loop()) {
     const teleop::v1::ForceLoop& loop = c.force_loop();
     require_present(problems, "force_loop.mass_kg", loop.has_mass_kg(), "the device's mass");
-    if (loop.has_mass_kg()) require_positive(problems, "force_loop.mass_kg", loop.mass_kg());
-    require_non_negative(problems, "force_loop.damping_Ns_per_m", loop.damping_ns_per_m());
     require_present(problems, "force_loop.sample_rate_hz", loop.has_sample_rate_hz(),
                     "the loop's rate");
-    if (loop.has_sample_rate_hz()) {
-      require_positive(problems, "force_loop.sample_rate_hz", loop.sample_rate_hz());
-    }
-    require_non_negative(problems, "force_loop.environment_stiffness_N_per_m",
-                         loop.environment_stiffness_n_per_m());
-    require_non_negative(problems, "force_loop.environment_damping_Ns_per_m",
-                         loop.environment_damping_ns_per_m());
     if (loop.has_sensor_average_samples() && loop.sensor_average_samples() < 1) {
       problems.add("force_loop.sensor_average_samples",
                    "must be >= 1, got " + std::to_string(loop.sensor_average_samples()));
@@ -759,10 +730,6 @@ void check_ranges(const teleop::v1::SystemConfig& c, Problems& problems) {
     if (std::isfinite(ratio) && (ratio < 0.0 || ratio >= 1.0)) {
       problems.add("analysis.required_damping_ratio",
                    "must be in [0, 1), got " + format_float(ratio));
-    }
-    if (c.analysis().has_stiffness_tolerance_n_per_m()) {
-      require_positive(problems, "analysis.stiffness_tolerance_N_per_m",
-                       c.analysis().stiffness_tolerance_n_per_m());
     }
   }
 }
@@ -892,6 +859,38 @@ void throw_missing(const std::vector<std::string>& missing) {
   throw ConfigError("--set " + assignment + ": " + (path.empty() ? "" : path + ": ") + message);
 }
 
+// The path of `PATH=VALUE` as the loader reads it (segments trimmed), "" without '='.
+std::string override_path(std::string_view assignment) {
+  const auto equals = assignment.find('=');
+  if (equals == std::string_view::npos) return {};
+  std::string path;
+  for (const std::string_view segment : split(trim(assignment.substr(0, equals)), '.')) {
+    if (!path.empty()) path += '.';
+    path += trim(segment);
+  }
+  return path;
+}
+
+// `--set a=1 --set a=2`: which one was meant? An error naming both, never the last silently.
+void check_repeated_overrides(const std::vector<std::string>& overrides) {
+  std::vector<std::string> lines;
+  for (std::size_t i = 0; i < overrides.size(); ++i) {
+    const std::string path = override_path(overrides[i]);
+    if (path.empty()) continue;
+    for (std::size_t j = 0; j < i; ++j) {
+      if (override_path(overrides[j]) == path) {
+        lines.push_back("--set " + overrides[i] + ": " + path + ": already set by --set " +
+                        overrides[j] + " (give each path once)");
+        break;
+      }
+    }
+  }
+  if (lines.empty()) return;
+  std::string text;
+  for (const std::string& line : lines) text += (text.empty() ? "" : "\n") + line;
+  throw ConfigError(text);
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -920,6 +919,7 @@ LoadedConfig load_config_text(std::string_view text, std::string source_name,
     throw ConfigError(message);
   }
   loaded.locations = std::move(locations);
+  check_repeated_overrides(overrides);
   for (const std::string& assignment : overrides) apply_override(loaded, assignment);
   validate(loaded);
   return loaded;
@@ -1057,9 +1057,9 @@ void apply_override(LoadedConfig& config, std::string_view assignment) {
 
 void validate(const LoadedConfig& config) {
   Problems problems(config);
-  FieldPath path;
-  check_finite(config.config, path, problems);
+  check_fields(config.config, problems);
   check_ranges(config.config, problems);
+  check_endpoints(config.config, problems);
   problems.throw_if_any();
 }
 

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "common/config/control_fingerprint.hpp"
+#include "common/config/parameter_space.hpp"
 #include "common/config/scene_loader.hpp"
 
 namespace teleop::config {
@@ -48,10 +49,11 @@ bool is_z85_key(const std::string& key) { return key.size() == 40; }
 NodeEndpoints default_endpoints(Role role) {
   const bool master = role == Role::kMaster;
   NodeEndpoints e;
-  e.state = master ? "tcp://127.0.0.1:5560" : "tcp://127.0.0.1:5561";
-  e.peer_state = master ? "tcp://127.0.0.1:5561" : "tcp://127.0.0.1:5560";
-  e.command = master ? "tcp://127.0.0.1:5562" : "tcp://127.0.0.1:5563";
-  e.telemetry = master ? "tcp://127.0.0.1:5564" : "tcp://127.0.0.1:5565";
+  // The defaults of the parameter space (which checks them for clashes).
+  e.state = master ? kDefaultMasterState : kDefaultSlaveState;
+  e.peer_state = master ? kDefaultSlaveState : kDefaultMasterState;
+  e.command = master ? kDefaultMasterCommand : kDefaultSlaveCommand;
+  e.telemetry = master ? kDefaultMasterTelemetry : kDefaultSlaveTelemetry;
   return e;
 }
 

@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <zmq.hpp>
 
+#include "common/config/parameter_space.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/rt/cpu_dma_latency.hpp"
 #include "common/runtime/command_authority.hpp"
@@ -88,39 +89,16 @@ std::function<void()> keep_running(const char* name, const std::atomic<bool>& ru
   };
 }
 
-// A parameter update as the RT core takes it; nullopt with the reason when a value is unusable.
+// A parameter update as the RT core takes it; nullopt with the reason when a value is unusable
+// (the one parameter space: the rules the configuration's own fields obey).
 std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string& why) {
-  const v1::Gains& g = u.gains();
-  const double values[] = {g.kpm(),
-                           g.kps(),
-                           g.kdm(),
-                           g.kds(),
-                           g.kvm(),
-                           g.kvs(),
-                           g.kfm(),
-                           u.master_fixture_stiffness_n_per_m(),
-                           u.master_fixture_position_m(),
-                           u.slave_fixture_stiffness_n_per_m(),
-                           u.slave_fixture_position_m(),
-                           u.ramp_ms()};
-  for (const double v : values) {
-    if (!std::isfinite(v)) {
-      why = "non-finite value";
-      return std::nullopt;
-    }
-  }
+  why = config::check_parameter_update(u);
+  if (!why.empty()) return std::nullopt;
   if (u.change_id() == 0) {
     why = "change_id must be > 0";
     return std::nullopt;
   }
-  if (u.master_fixture_stiffness_n_per_m() < 0.0 || u.slave_fixture_stiffness_n_per_m() < 0.0) {
-    why = "fixture stiffness must be >= 0";
-    return std::nullopt;
-  }
-  if (u.ramp_ms() < 0.0 || u.ramp_ms() > 60000.0) {
-    why = "ramp_ms must be in [0, 60000]";
-    return std::nullopt;
-  }
+  const v1::Gains& g = u.gains();
   node::Retune r;
   r.id = u.change_id();
   r.gains = Gains{g.kpm(), g.kps(), g.kdm(), g.kds(), g.kvm(), g.kvs(), g.kfm()};

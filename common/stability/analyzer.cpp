@@ -1,6 +1,7 @@
 #include "common/stability/analyzer.hpp"
 
 #include <algorithm>
+#include <limits>
 
 namespace teleop::stability {
 
@@ -34,6 +35,7 @@ BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const
   double failing_zeta = 3.0;
   bool any_uncertain = false;
   bool any_unstable = false;
+  bool any_invalid = false;
   // Blocks without the master do not depend on the human: their spectrum is computed once.
   std::optional<Spectrum> human_free;
   for (std::size_t i = 0; i < humans_.size(); ++i) {
@@ -55,11 +57,16 @@ BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const
     for (const Spectrum& s : parts) {
       zeta = std::min(zeta, s.min_damping_ratio);
       radius = std::max(radius, s.spectral_radius);
+      if (s.verdict == Verdict::kInvalid && !any_invalid) {
+        any_invalid = true;
+        result.invalid_reason = s.invalid_reason;
+        result.failing_index = i;
+      }
       any_unstable = any_unstable || s.verdict == Verdict::kUnstable;
       any_uncertain = any_uncertain || s.verdict == Verdict::kUncertain;
       fails = fails || s.verdict != Verdict::kStable;
     }
-    fails = fails || zeta < required;
+    fails = fails || !(zeta >= required);
     if (zeta < result.min_damping_ratio) {
       result.min_damping_ratio = zeta;
       result.worst_index = i;
@@ -73,13 +80,19 @@ BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const
       result.failing_index = i;
     }
   }
-  result.verdict = any_unstable    ? Verdict::kUnstable
+  result.verdict = any_invalid     ? Verdict::kInvalid
+                   : any_unstable  ? Verdict::kUnstable
                    : any_uncertain ? Verdict::kUncertain
                                    : Verdict::kStable;
+  if (any_invalid) {
+    result.min_damping_ratio = std::numeric_limits<double>::quiet_NaN();
+    result.spectral_radius = std::numeric_limits<double>::quiet_NaN();
+  }
   return result;
 }
 
 bool meets_requirement(const BandResult& r, double required_damping_ratio) {
+  // Written so that a NaN damping ratio fails.
   return r.verdict == Verdict::kStable && r.min_damping_ratio >= required_damping_ratio;
 }
 
@@ -94,17 +107,28 @@ AnalysisResult analyze(const TeleopParams& params) {
   if (ev.human_count() == 1) {
     out.spectrum = ev.spectrum(0, kmvf, ksvf, true);
     band = {out.spectrum.verdict, out.spectrum.min_damping_ratio, out.spectrum.spectral_radius, 0};
+    band.invalid_reason = out.spectrum.invalid_reason;
   } else {
     band = ev.sweep(kmvf, ksvf);
     out.spectrum = ev.spectrum(band.worst_index, kmvf, ksvf, true);
   }
   out.verdict = band.verdict;
+  out.invalid_reason = band.invalid_reason;
   // The detailed spectrum carries error bounds; it may only make the verdict less certain.
   if (out.verdict == Verdict::kStable && out.spectrum.verdict != Verdict::kStable) {
     out.verdict = out.spectrum.verdict;
+    out.invalid_reason = out.spectrum.invalid_reason;
+  }
+  if (out.spectrum.verdict == Verdict::kInvalid && out.verdict != Verdict::kInvalid) {
+    out.verdict = Verdict::kInvalid;
+    out.invalid_reason = out.spectrum.invalid_reason;
   }
   out.spectral_radius = band.spectral_radius;
   out.min_damping_ratio = band.min_damping_ratio;
+  if (out.verdict == Verdict::kInvalid) {
+    out.spectral_radius = std::numeric_limits<double>::quiet_NaN();
+    out.min_damping_ratio = std::numeric_limits<double>::quiet_NaN();
+  }
   if (ev.human_matters()) {
     out.worst_human = ev.human(band.worst_index);
     out.radius_human = ev.human(band.radius_index);

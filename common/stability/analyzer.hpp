@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "common/core/teleop_params.hpp"
@@ -21,6 +22,8 @@ struct BandResult {
   std::size_t radius_index{0};  // the human with the largest spectral radius
   // A human that fails the requirement (the lowest damping ratio among those that do), if any.
   std::optional<std::size_t> failing_index{};
+  // Why the verdict is invalid (a non-finite model for some human), empty otherwise.
+  std::string invalid_reason{};
 };
 
 // Holds what does not change between evaluations: the model structure, the humans and their
@@ -57,6 +60,8 @@ struct AnalysisResult {
   Spectrum spectrum{};                        // of the worst human's loop, with error bounds
   Structure structure{Structure::kBilateral};
   std::size_t humans_evaluated{0};
+  // Why the verdict is invalid, empty otherwise.
+  std::string invalid_reason{};
 };
 
 // The configured teleoperator as it stands (its own fixture stiffnesses).

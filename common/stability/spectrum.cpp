@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 
 namespace teleop::stability {
 
@@ -61,15 +62,32 @@ Mode make_mode(std::complex<double> z, double period_s) {
   return m;
 }
 
+// Stable only when every mode is inside the circle by more than its error: written so that a
+// NaN anywhere fails the test (`!(x < y)`), never passes it.
 Verdict verdict_of(const std::vector<Mode>& modes) {
   bool uncertain = false;
+  bool unstable = false;
   for (const Mode& m : modes) {
     if (m.structural) continue;
+    if (!std::isfinite(m.abs_z) || !std::isfinite(m.error) || std::isnan(m.damping_ratio)) {
+      return Verdict::kInvalid;
+    }
     const double margin = 1.0 - m.abs_z;
-    if (margin < -m.error) return Verdict::kUnstable;
-    if (margin <= m.error) uncertain = true;
+    if (margin < -m.error) unstable = true;
+    if (!(margin > m.error)) uncertain = true;
   }
+  if (unstable) return Verdict::kUnstable;
   return uncertain ? Verdict::kUncertain : Verdict::kStable;
+}
+
+// A spectrum that says nothing: NaN radius and damping ratio, verdict invalid.
+Spectrum invalid_spectrum(std::string reason) {
+  Spectrum sp;
+  sp.spectral_radius = std::numeric_limits<double>::quiet_NaN();
+  sp.min_damping_ratio = std::numeric_limits<double>::quiet_NaN();
+  sp.verdict = Verdict::kInvalid;
+  sp.invalid_reason = std::move(reason);
+  return sp;
 }
 
 void summarise(Spectrum& sp) {
@@ -85,6 +103,16 @@ void summarise(Spectrum& sp) {
     sp.min_damping_ratio = std::min(sp.min_damping_ratio, m.damping_ratio);
   }
   sp.verdict = verdict_of(sp.modes);
+  if (sp.verdict == Verdict::kInvalid) {
+    // std::max/min drop NaNs: never print a radius or a damping ratio that was not computed.
+    sp.spectral_radius = std::numeric_limits<double>::quiet_NaN();
+    sp.min_damping_ratio = std::numeric_limits<double>::quiet_NaN();
+    if (sp.invalid_reason.empty()) {
+      sp.invalid_reason =
+          "an eigenvalue of the closed loop or its damping ratio is not finite (a parameter "
+          "overflows the model)";
+    }
+  }
 }
 
 }  // namespace
@@ -104,6 +132,13 @@ double damping_ratio(std::complex<double> z) {
 
 Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int structural_zeros,
                           bool estimate_error) {
+  if (!a_in.allFinite()) {
+    return invalid_spectrum(
+        "the closed-loop matrix has a non-finite entry (a parameter overflows the model)");
+  }
+  if (!(std::isfinite(period_s) && period_s > 0.0)) {
+    return invalid_spectrum("the sample period is not a positive finite number");
+  }
   Spectrum sp;
   const Eigen::Index n = a_in.rows();
   if (n > 0) {
@@ -164,6 +199,9 @@ Spectrum compute_spectrum(const Eigen::MatrixXd& a_in, double period_s, int stru
 }
 
 Spectrum merge(const std::vector<Spectrum>& parts) {
+  for (const Spectrum& p : parts) {
+    if (p.verdict == Verdict::kInvalid) return invalid_spectrum(p.invalid_reason);
+  }
   Spectrum sp;
   for (const Spectrum& p : parts) sp.modes.insert(sp.modes.end(), p.modes.begin(), p.modes.end());
   summarise(sp);

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <complex>
+#include <string>
 #include <vector>
 
 #include "common/stability/verdict.hpp"
@@ -24,6 +25,8 @@ struct Spectrum {
   double spectral_radius{0.0};
   double min_damping_ratio{1.0};
   Verdict verdict{Verdict::kStable};
+  // Why the verdict is kInvalid (empty otherwise).
+  std::string invalid_reason{};
 };
 
 // Modes farther than this from the unit circle are decided without an error estimate.

@@ -35,6 +35,9 @@ std::string describe_failure(const BandResult& r, double required, Side side, do
       other == 0.0 ? std::string("no fixture at all")
                    : fmt::format("no {} fixture (the {} fixture at {:g} N/m as configured)", name,
                                  side == Side::kMaster ? "slave" : "master", other);
+  if (r.verdict == Verdict::kInvalid) {
+    return fmt::format("invalid model with {}: {}", with_other, r.invalid_reason);
+  }
   if (r.verdict == Verdict::kUnstable) {
     return fmt::format("unstable with {} (minimum damping ratio {:.4g})", with_other,
                        r.min_damping_ratio);
@@ -100,6 +103,7 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
       lo_band = tiny;
     } else {
       out.reason = describe_failure(lo_band, required, side, other);
+      out.invalid = lo_band.verdict == Verdict::kInvalid;
       if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
       return finish();
     }

@@ -27,6 +27,8 @@ struct StiffnessLimit {
   double other_fixture_N_per_m{0.0};  // the other side's fixture, held at its configured value
   long evaluations{0};                // single-human spectra computed
   int band_verifications{0};          // whole-band sweeps
+  // The model is not finite (verdict invalid): no limit, and the reason says why.
+  bool invalid{false};
 };
 
 // Searches on the current worst human (geometric scan, then bisection), verifies the whole

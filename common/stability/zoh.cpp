@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace teleop::stability {
 
@@ -31,6 +32,14 @@ ZohPlant discretize_plant(double mass_kg, double damping_Ns_per_m, double stiffn
   const long double norm =
       std::max(std::fabs(x.a) + std::fabs(x.b), std::fabs(x.c) + std::fabs(x.d));
   int squarings = 0;
+  if (!std::isfinite(norm)) {
+    // An overflowing plant (e.g. a mass of 1e-4000): NaN matrices, which the spectrum reports
+    // as an invalid model, never a number of squarings out of an infinite norm.
+    ZohPlant plant;
+    plant.phi.setConstant(std::numeric_limits<double>::quiet_NaN());
+    plant.gamma.setConstant(std::numeric_limits<double>::quiet_NaN());
+    return plant;
+  }
   if (norm > 0.25L) squarings = static_cast<int>(std::ceil(std::log2(norm / 0.25L)));
   const long double scale = std::ldexp(1.0L, -squarings);
   const M2 y{x.a * scale, x.b * scale, x.c * scale, x.d * scale};

@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "common/config/parameter_space.hpp"
 #include "common/stability/analyzer.hpp"
 #include "common/stability/stiffness_search.hpp"
 
@@ -21,6 +22,23 @@ std::optional<double> Assessment::master_margin() const {
 std::optional<double> Assessment::slave_margin() const {
   if (!max_slave_N_per_m || *max_slave_N_per_m <= 0.0) return std::nullopt;
   return 1.0 - inputs.slave_fixture_N_per_m / *max_slave_N_per_m;
+}
+
+v1::ParameterUpdate StabilityGuard::to_update(const LiveInputs& in) const {
+  v1::ParameterUpdate u;
+  v1::Gains& g = *u.mutable_gains();
+  g.set_kpm(in.gains.kpm);
+  g.set_kps(in.gains.kps);
+  g.set_kdm(in.gains.kdm);
+  g.set_kds(in.gains.kds);
+  g.set_kvm(in.gains.kvm);
+  g.set_kvs(in.gains.kvs);
+  g.set_kfm(in.gains.kfm);
+  u.set_master_fixture_stiffness_n_per_m(in.master_fixture_N_per_m);
+  u.set_master_fixture_position_m(configured_.master_fixture.position_m);
+  u.set_slave_fixture_stiffness_n_per_m(in.slave_fixture_N_per_m);
+  u.set_slave_fixture_position_m(configured_.slave_fixture.position_m);
+  return u;
 }
 
 StabilityGuard::StabilityGuard(TeleopParams configured) : configured_(std::move(configured)) {}
@@ -55,6 +73,7 @@ const Assessment& StabilityGuard::assess(const LiveInputs& in) {
   a.min_damping_ratio = r.min_damping_ratio;
   a.required_damping_ratio = p.analysis.required_damping_ratio;
   a.worst_human = r.worst_human;
+  a.invalid_reason = r.invalid_reason;
   // The limits only where a fixture is used (skip what the scene does not need).
   if (in.master_fixture_N_per_m > 0.0) {
     a.max_master_N_per_m =
@@ -76,22 +95,22 @@ Decision StabilityGuard::check(const LiveInputs& current, const ChangeRequest& c
     d.proposed.master_fixture_N_per_m = *change.master_fixture_N_per_m;
   if (change.slave_fixture_N_per_m)
     d.proposed.slave_fixture_N_per_m = *change.slave_fixture_N_per_m;
-  for (const double v :
-       {d.proposed.gains.kpm, d.proposed.gains.kps, d.proposed.gains.kdm, d.proposed.gains.kds,
-        d.proposed.gains.kvm, d.proposed.gains.kvs, d.proposed.gains.kfm,
-        d.proposed.master_fixture_N_per_m, d.proposed.slave_fixture_N_per_m}) {
-    if (!std::isfinite(v)) {
-      d.reason = "refused: a requested value is not finite";
-      return d;
-    }
-  }
-  if (d.proposed.master_fixture_N_per_m < 0.0 || d.proposed.slave_fixture_N_per_m < 0.0) {
-    d.reason = "refused: fixture stiffness must be >= 0";
+  // The one parameter space first (the rules a node applies to the same update): nothing
+  // non-finite, negative or beyond the documented ceilings reaches the analyser.
+  if (const std::string why = config::check_parameter_update(to_update(d.proposed)); !why.empty()) {
+    d.reason = "refused: " + why;
+    d.prediction.inputs = d.proposed;
+    d.prediction.required_damping_ratio = configured_.analysis.required_damping_ratio;
+    d.prediction.verdict = stability::Verdict::kInvalid;
+    d.prediction.invalid_reason = why;
+    d.prediction.min_damping_ratio = std::nan("");
     return d;
   }
   d.prediction = assess(d.proposed);
   const Assessment& a = d.prediction;
-  if (a.verdict == stability::Verdict::kUnstable) {
+  if (a.verdict == stability::Verdict::kInvalid) {
+    d.reason = "refused: the analyser cannot evaluate the model (" + a.invalid_reason + ")";
+  } else if (a.verdict == stability::Verdict::kUnstable) {
     d.reason = fmt::format(
         "refused: the analyser predicts an unstable teleoperator (minimum damping ratio {:.4f}, "
         "round trip {} samples)",
@@ -100,7 +119,7 @@ Decision StabilityGuard::check(const LiveInputs& current, const ChangeRequest& c
     d.reason =
         "refused: the analyser's verdict is uncertain (an eigenvalue within its error "
         "bound of the unit circle)";
-  } else if (a.min_damping_ratio < a.required_damping_ratio) {
+  } else if (!(a.min_damping_ratio >= a.required_damping_ratio)) {  // NaN fails too
     d.reason =
         fmt::format("refused: predicted minimum damping ratio {:.4f} is below the required {:.4f}",
                     a.min_damping_ratio, a.required_damping_ratio);

@@ -11,6 +11,7 @@
 #include "common/core/teleop_params.hpp"
 #include "common/stability/human_grid.hpp"
 #include "common/stability/verdict.hpp"
+#include "teleop/v1/telemetry.pb.h"
 
 namespace teleop::supervisor {
 
@@ -40,6 +41,8 @@ struct Assessment {
   std::optional<stability::HumanSample> worst_human{};
   std::optional<double> max_master_N_per_m{};
   std::optional<double> max_slave_N_per_m{};
+  // Why the verdict is invalid (a non-finite model), empty otherwise.
+  std::string invalid_reason{};
   // True when the verdict is stable and every mode meets the required damping ratio.
   [[nodiscard]] bool acceptable() const;
   // 1 - configured / maximum (empty without a finite maximum or a fixture).
@@ -81,6 +84,10 @@ class StabilityGuard {
                                          double fraction);
 
   [[nodiscard]] TeleopParams params_for(const LiveInputs& inputs) const;
+
+  // The inputs as the ParameterUpdate a node would be sent (fixture positions configured),
+  // for config::check_parameter_update.
+  [[nodiscard]] v1::ParameterUpdate to_update(const LiveInputs& inputs) const;
 
  private:
   TeleopParams configured_;

@@ -96,6 +96,7 @@ int run_force_loop(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std
       out << fmt::format(" {:.6g}{:+.6g}i", root.real(), root.imag());
     out << "\n";
   }
+  if (r.verdict == stability::Verdict::kInvalid) return kExitError;
   if (r.verdict == stability::Verdict::kUnstable) return kExitUnstable;
   if (r.verdict == stability::Verdict::kUncertain) return kExitUncertain;
   return kExitStable;
@@ -115,6 +116,7 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
 
   json limits = json::array();
   std::vector<Series> series;
+  bool any_invalid = false;  // a point whose model is not finite: the run fails
   for (const auto& sv : sweep_values) {
     Series line;
     line.label = sv ? fmt::format("{} = {:g}", o.sweep->path, *sv) : std::string(side_name);
@@ -123,6 +125,7 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
       if (sv) sets.push_back(o.sweep->path + "=" + number_text(*sv));
       const TeleopParams p = params_with(cfg, sets);
       const stability::StiffnessLimit l = stability::max_stable_stiffness(p, side);
+      any_invalid = any_invalid || l.invalid;
       json j = limit_json(l, side, rate);
       if (sv) j[o.sweep->path] = *sv;
       limits.push_back(j);
@@ -181,7 +184,7 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
     chart.series = series;
     write_file(*o.plot_path, render_svg(chart));
   }
-  return kExitStable;
+  return any_invalid ? kExitError : kExitStable;
 }
 
 int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out) {
@@ -191,6 +194,9 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
     out << analysis_json(r, p).dump(2) << "\n";
   } else {
     out << fmt::format("{}: {}\n", cfg.source_name, stability::to_string(r.verdict));
+    if (r.verdict == stability::Verdict::kInvalid) {
+      out << "  the model cannot be analysed: " << r.invalid_reason << "\n";
+    }
     out << fmt::format(
         "  loop: {} at {:g} Hz, round trip {} samples, fixtures master {:g} N/m, "
         "slave {:g} N/m\n",
@@ -239,8 +245,10 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
       return kExitUnstable;
     case stability::Verdict::kUncertain:
       return kExitUncertain;
+    case stability::Verdict::kInvalid:
+      return kExitError;
   }
-  return kExitUncertain;
+  return kExitError;
 }
 
 }  // namespace
@@ -283,7 +291,7 @@ AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
     } else if (a == "--rates") {
       for (const std::string& r : split(value("--rates"), ',')) {
         const double hz = parse_number(r, "--rates");
-        if (hz <= 0.0) throw UsageError(fmt::format("--rates: {} Hz is not positive", r));
+        if (!(hz > 0.0)) throw UsageError(fmt::format("--rates: {} Hz is not positive", r));
         o.rates_hz.push_back(hz);
       }
     } else if (a == "--sweep") {

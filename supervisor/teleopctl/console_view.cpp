@@ -200,7 +200,7 @@ std::string margin_bar(double configured, double maximum, int width) {
   const int inner = std::max(3, width - 2);
   std::string bar(static_cast<std::size_t>(inner), '.');
   const double ratio = maximum > 0.0 ? configured / maximum : INFINITY;
-  if (ratio > 1.0) {
+  if (!(ratio <= 1.0)) {  // beyond the limit, or not a number: never drawn as a safe margin
     std::fill(bar.begin(), bar.end(), '#');
     bar.back() = '!';
   } else {

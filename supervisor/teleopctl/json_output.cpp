@@ -36,6 +36,7 @@ json analysis_json(const stability::AnalysisResult& r, const TeleopParams& p) {
   json modes = json::array();
   for (const stability::Mode& m : r.spectrum.modes) modes.push_back(mode_json(m));
   return {{"verdict", stability::to_string(r.verdict)},
+          {"invalid_reason", r.invalid_reason.empty() ? json(nullptr) : json(r.invalid_reason)},
           {"stable", r.verdict == stability::Verdict::kStable},
           {"spectral_radius", r.spectral_radius},
           {"min_damping_ratio", r.min_damping_ratio},
@@ -60,6 +61,7 @@ json limit_json(const stability::StiffnessLimit& l, stability::Side side, double
             {"worst_human", human_json(l.worst_human)},
             {"evaluations", l.evaluations}};
   if (!l.reason.empty()) j["reason"] = l.reason;
+  if (l.invalid) j["invalid"] = true;
   j["other_fixture_N_per_m"] = l.other_fixture_N_per_m;
   if (side == stability::Side::kMaster) {
     j["passivity_limit_N_per_m"] = optional_number(l.passivity_limit_N_per_m);

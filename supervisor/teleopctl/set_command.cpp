@@ -124,6 +124,15 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     }
   }
   if (sets.empty()) throw UsageError("nothing to set");
+  for (std::size_t i = 0; i < sets.size(); ++i) {
+    for (std::size_t j = 0; j < i; ++j) {
+      if (sets[i].first == sets[j].first) {
+        throw UsageError(fmt::format("{} is set twice ({}={:g} and {}={:g}): give each path once",
+                                     sets[i].first, sets[j].first, sets[j].second, sets[i].first,
+                                     sets[i].second));
+      }
+    }
+  }
   return run_guarded("set", err, [&]() -> int {
     sup.use_local_launch_keys();
     // The gains in force, so that a change of one gain keeps the others.

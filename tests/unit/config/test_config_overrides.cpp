@@ -33,12 +33,27 @@ TEST(ConfigOverride, SetsAScalar) {
 }
 
 TEST(ConfigOverride, OverridesPassedToTheLoaderApplyInOrder) {
-  const LoadedConfig config =
-      load_config_text(kFullConfig, "TEST", {"gains.kps=800", "gains.kpm=10", "gains.kps=900"});
+  const LoadedConfig config = load_config_text(
+      kFullConfig, "TEST", {"gains={kps: 800 kdm: 2}", "gains.kpm=10", "gains.kps=900"});
   const TeleopParams p = to_teleop_params(config);
-  EXPECT_EQ(p.gains.kps, 900.0);
+  EXPECT_EQ(p.gains.kps, 900.0);  // the field after its section
   EXPECT_EQ(p.gains.kpm, 10.0);
-  EXPECT_EQ(p.gains.kdm, 2.0);  // untouched
+  EXPECT_EQ(p.gains.kdm, 2.0);
+  EXPECT_EQ(p.gains.kds, 0.0);  // the section replaced the file's
+}
+
+// Issue 14: `--set a=1 --set a=2` kept the last silently. An error naming both assignments (the
+// path as the loader reads it: spaces around the dots do not make it another path).
+TEST(ConfigOverride, ARepeatedPathIsAnErrorNamingBothAssignments) {
+  const std::string error = error_of([] {
+    (void)load_config_text(kFullConfig, "TEST",
+                           {"gains.kps=800", "gains.kpm=10", " gains . kps = 900"});
+  });
+  EXPECT_EQ(error,
+            "--set  gains . kps = 900: gains.kps: already set by --set gains.kps=800 (give each "
+            "path once)");
+  // Another path, or a section and then a field in it, is no repetition.
+  EXPECT_NO_THROW((void)load_config_text(kFullConfig, "TEST", {"gains.kps=800", "gains.kpm=800"}));
 }
 
 TEST(ConfigOverride, CreatesAbsentSections) {

@@ -83,9 +83,41 @@ TEST(StabilityGuard, NonFiniteOrNegativeRequestsAreRefusedByName) {
   StabilityGuard guard(fig6());
   ChangeRequest c;
   c.slave_fixture_N_per_m = std::nan("");
-  EXPECT_NE(guard.check(guard.configured_inputs(), c).reason.find("not finite"), std::string::npos);
+  EXPECT_NE(guard.check(guard.configured_inputs(), c).reason.find("must be finite"),
+            std::string::npos);
   c.slave_fixture_N_per_m = -1.0;
   EXPECT_NE(guard.check(guard.configured_inputs(), c).reason.find(">= 0"), std::string::npos);
+}
+
+// Issue 14: kps = 1e308 overflowed the model into NaN, which compared as stable and was
+// applied. The one parameter space refuses it before any analysis, naming the field; so for a
+// negative gain (positive feedback) and a stiffness beyond the ceiling.
+TEST(StabilityGuard, AbsurdGainsAndStiffnessesAreRefusedByTheParameterSpaceBeforeAnalysis) {
+  StabilityGuard guard(fig6());
+  const LiveInputs now = guard.configured_inputs();
+  const auto reason_for = [&](const ChangeRequest& c) {
+    const Decision d = guard.check(now, c);
+    EXPECT_FALSE(d.accepted);
+    EXPECT_NE(d.prediction.verdict, stability::Verdict::kStable);
+    return d.reason;
+  };
+  ChangeRequest c;
+  c.gains = now.gains;
+  c.gains->kps = 1e308;
+  EXPECT_EQ(reason_for(c).rfind("refused: gains.kps: must be in [0, 1e+07] N/m", 0), 0u)
+      << reason_for(c);
+  c.gains->kps = -5.0;
+  EXPECT_EQ(reason_for(c), "refused: gains.kps: must be >= 0, got -5");
+  c.gains = now.gains;
+  c.gains->kvs = -0.1;
+  EXPECT_EQ(reason_for(c), "refused: gains.kvs: must be >= 0, got -0.1");
+  ChangeRequest wall;
+  wall.slave_fixture_N_per_m = 1e308;
+  EXPECT_NE(reason_for(wall).find("slave_fixture_stiffness_N_per_m: must be in [0, 1e+07]"),
+            std::string::npos);
+  // At the ceiling the analyser decides (1e7 N/m on the paper's paddle is unstable).
+  wall.slave_fixture_N_per_m = 1e7;
+  EXPECT_NE(reason_for(wall).find("unstable"), std::string::npos);
 }
 
 // The monitor as the supervisor runs it, over a lockstep run of a shipped scene: the slave's
