@@ -249,7 +249,8 @@ int run_node_command(const std::vector<std::string>& args, std::ostream& out, st
 
 std::string launch_usage() {
   return "usage: teleopctl launch CONFIG [--set PATH=VALUE]... [--duration S] [--no-engage]\n"
-         "                        [--record-dir DIR] [--no-supervisor] [--instance N]\n\n"
+         "                        [--record-dir DIR] [--no-supervisor] [--instance N] "
+         "[--plaintext]\n\n"
          "Starts teleop-master and teleop-slave on loopback with simulated devices (the scene's\n"
          "human and environment, when CONFIG has a scene) and teleop-supervisor (recording the\n"
          "session in DIR, default ./sessions), arms and engages both nodes, and prints their\n"
@@ -267,7 +268,9 @@ std::string launch_usage() {
          "the supervisor and the local console, so even loopback is authenticated; they live in\n"
          "$TELEOP_RUNTIME_DIR, $XDG_RUNTIME_DIR/teleop or /tmp/teleop-UID (launch-PID, mode\n"
          "0700), where teleopctl console, status, set, estop and node find them without flags,\n"
-         "and are removed when the launch ends.\n";
+         "and are removed when the launch ends. --plaintext keeps the loopback links plaintext\n"
+         "(no keys generated; the nodes then refuse every retune unless CONFIG sets\n"
+         "security.allow_unauthenticated_retune).\n";
 }
 
 int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
@@ -279,6 +282,7 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
   std::string record_dir = "sessions";
   bool record_dir_given = false;
   int instance = 0;
+  bool plaintext = false;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
@@ -293,6 +297,8 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
       engage = false;
     } else if (a == "--no-supervisor") {
       supervise = false;
+    } else if (a == "--plaintext") {
+      plaintext = true;
     } else if (a == "--record-dir") {
       record_dir = cur.value("--record-dir");
       record_dir_given = true;
@@ -328,7 +334,7 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     }
     // Secure by default: keys of its own for a configuration without any (local_launch.hpp).
     const std::unique_ptr<LaunchKeys> launch_keys =
-        generate_launch_keys(config_path, overrides, loaded);
+        plaintext ? nullptr : generate_launch_keys(config_path, overrides, loaded);
     if (launch_keys) {
       out << "CURVE keys generated for this launch in " << launch_keys->dir().string()
           << " (removed when it ends; teleopctl console, status, set, estop and node find them)"

@@ -128,7 +128,8 @@ TEST(HostileEngage, ASlaveWithOtherGainsIsRefusedArmAndEngageOnBothWithBothFinge
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));
-  sys.start_supervisor();
+  // The nodes alone first: the supervisor, once it hears the slave's gains in force that it
+  // never approved, e-stops both (finding 2's audit), and the refusals are the nodes' own.
   sys.start_master();
   sys.start_slave({"gains.kps=900"});
   ASSERT_TRUE(mt.wait_for(linked)) << sys.logs();
@@ -160,6 +161,7 @@ TEST(HostileEngage, ASlaveWithOtherGainsIsRefusedArmAndEngageOnBothWithBothFinge
   EXPECT_EQ(st.last()->peer_config_fingerprint(), file_fp);
 
   // The supervisor: an alarm naming the three fingerprints and the differing field.
+  sys.start_supervisor();
   std::optional<v1::Alarm> alarm;
   std::string mismatch;
   ASSERT_TRUE(eventually([&] {
@@ -401,7 +403,8 @@ TEST(HostileEngage, AnOlderPeerWithoutAFingerprintIsRefusedArm) {
 TEST(HostileEngage, ASupervisorApprovedChangeNeverTripsTheCheck) {
   TempDir dir;
   SystemPorts ports;
-  System sys(dir, system_config(ports));
+  // Plaintext loopback: the supervisor's retunes need the opt-in (finding 2).
+  System sys(dir, system_config(ports, "", kAllowUnauthenticatedRetune));
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.nodes.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.nodes.slave_telemetry));

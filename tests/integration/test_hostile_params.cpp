@@ -204,7 +204,8 @@ void expect_parameters_untouched(const TelemetryTap& tap, const char* name) {
 TEST(HostileParams, ARetuneWithAbsurdValuesSentStraightToANodeIsRefusedByTheNode) {
   TempDir dir;
   const Ports ports;
-  const fs::path config = dir.write("system.textproto", node_config(ports));
+  const fs::path config =
+      dir.write("system.textproto", node_config(ports) + kAllowUnauthenticatedRetune);
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));

@@ -218,6 +218,7 @@ TEST(ConsoleScreen, AnAligningNodeShowsItsAlignmentErrorInMillimetres) {
   EXPECT_TRUE(contains(lines, "x +4.10mm gap+17.30mm")) << joined(lines);
   // Engaged, the row shows the force instead (the gap is the coupling's business then).
   v.status->mutable_master()->set_mode(v1::ENGAGED);
+  v.status->mutable_slave()->set_mode(v1::ENGAGED);
   EXPECT_FALSE(contains(render_console(v, 24, 80), "gap+17.30mm"));
 }
 
