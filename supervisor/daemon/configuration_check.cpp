@@ -44,7 +44,8 @@ bool settled(const v1::Telemetry* t) {
 
 }  // namespace
 
-ConfigurationMismatch compare_configurations(std::uint64_t own, const ApprovedConfiguration& approved,
+ConfigurationMismatch compare_configurations(std::uint64_t own,
+                                             const ApprovedConfiguration& approved,
                                              const v1::Telemetry* master,
                                              const v1::Telemetry* slave) {
   ConfigurationMismatch out;
