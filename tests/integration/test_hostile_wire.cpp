@@ -169,7 +169,7 @@ class Raw {
       if (!fill(9, t)) return std::nullopt;
       header = 9;
       size = 0;
-      for (int i = 1; i <= 8; ++i) size = (size << 8) | static_cast<unsigned char>(in_[i]);
+      for (std::size_t i = 1; i <= 8; ++i) size = (size << 8) | static_cast<unsigned char>(in_[i]);
     }
     if (!fill(header + size, t)) return std::nullopt;
     Bytes body = in_.substr(header, size);

@@ -205,7 +205,7 @@ TEST(NodeStateCodec, TheChecksumIsLastAndCoversTheFingerprint) {
   const std::uint32_t crc =
       fingerprint_wire::crc32_of(std::string_view(bytes).substr(0, bytes.size() - 5));
   std::uint32_t wire = 0;
-  for (int i = 0; i < 4; ++i) {
+  for (std::size_t i = 0; i < 4; ++i) {
     wire |= static_cast<std::uint32_t>(static_cast<unsigned char>(bytes[bytes.size() - 4 + i]))
             << (8 * i);
   }
