@@ -19,6 +19,7 @@
 #include <fstream>
 
 #include "tests/integration/node_harness.hpp"
+#include "tests/support/sanitizer.hpp"
 
 namespace teleop::test {
 namespace {
@@ -523,7 +524,11 @@ TEST_F(HostileWire, SubscriptionFloodsKeepBothNodesEngagedWithBoundedMemory) {
             << "\n";
   // Measured: 0.5-9 MB here (what was queued before the cut, as far as malloc_trim can give it
   // back); before: 160 MB and both nodes safe.
-  EXPECT_LT(rss_after - rss_before, 16 * 1024) << "kB";
+  // ASan's allocator keeps freed memory in quarantine and ignores malloc_trim: the bound is the
+  // normal build's (the sanitizer build still checks every node ENGAGED on every cycle).
+  if (!kAddressSanitizer) {
+    EXPECT_LT(rss_after - rss_before, 16 * 1024) << "kB";
+  }
 }
 
 // A flood of messages that fills a connection's queue to the socket (its input stopped), then
