@@ -236,7 +236,9 @@ class LiveSystem {
     out = r.out;
     if (r.exit_code != 0) return std::nullopt;
     const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
-    if (j.is_discarded()) return std::nullopt;
+    if (j.is_discarded() || !j["limits"][0]["max_stable_stiffness_N_per_m"].is_number()) {
+      return std::nullopt;  // no stable stiffness at that round trip: `out` says why
+    }
     return j["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
   }
   // The limit for the supervisor's current model (asserting on the way).

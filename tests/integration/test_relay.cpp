@@ -133,23 +133,39 @@ TEST(Relay, DelayRaisesTheMeasuredRoundTripAndTheSupervisorsModelMatchesAnalyze)
   })) << sys.logs();
   const int samples = status->report().round_trip_samples();
   // ... and its limit is what the offline analyser gives for that round trip, lower than for
-  // the configured one-sample loop.
-  auto limit = [&](int n) {
+  // the configured one-sample loop. On a loaded host the measured p99 can reach a round trip
+  // at which the loop is unstable with no fixture at all (13 samples once, under CI's load):
+  // then the analyser has no limit, and neither may the supervisor.
+  auto limit = [&](int n) -> std::optional<double> {
     const CliResult r = teleopctl("analyze " + sys.config().string() +
                                       " --max-stiffness slave --json --set "
                                       "round_trip_delay_samples=" +
                                       std::to_string(n),
                                   false);
     EXPECT_EQ(r.exit_code == 0 || r.exit_code == 3, true) << r.out;
-    return nlohmann::json::parse(r.out)["limits"][0]["max_stable_stiffness_N_per_m"].get<double>();
+    const nlohmann::json j = nlohmann::json::parse(r.out).at("limits").at(0);
+    const nlohmann::json& k = j.at("max_stable_stiffness_N_per_m");
+    if (!k.is_number()) return std::nullopt;
+    return k.get<double>();
   };
-  const double analysed = limit(samples);
-  ASSERT_TRUE(status->report().has_max_stable_slave_stiffness_n_per_m());
-  EXPECT_NEAR(status->report().max_stable_slave_stiffness_n_per_m(), analysed, 1e-3 * analysed);
-  EXPECT_LT(analysed, limit(1));
+  const std::optional<double> analysed = limit(samples);
+  const std::optional<double> one_sample = limit(1);
+  ASSERT_TRUE(one_sample.has_value()) << "the configured loop has a limit";
+  if (analysed) {
+    ASSERT_TRUE(status->report().has_max_stable_slave_stiffness_n_per_m())
+        << status->report().DebugString();
+    EXPECT_NEAR(status->report().max_stable_slave_stiffness_n_per_m(), *analysed,
+                1e-3 * *analysed);
+    EXPECT_LT(*analysed, *one_sample);
+  } else {
+    EXPECT_FALSE(status->report().has_max_stable_slave_stiffness_n_per_m())
+        << samples << " samples: the analyser has no limit, the supervisor "
+        << status->report().max_stable_slave_stiffness_n_per_m() << " N/m";
+  }
   std::cout << "round trip p50 " << static_cast<double>(link.round_trip_p50_ns()) * 1e-6
-            << " ms, model " << samples << " samples, slave limit " << analysed
-            << " N/m (1 sample: " << limit(1) << ")\n";
+            << " ms, model " << samples << " samples, slave limit "
+            << (analysed ? std::to_string(*analysed) + " N/m" : std::string("none (unstable)"))
+            << " (1 sample: " << *one_sample << " N/m)\n";
 }
 
 TEST(Relay, DuplicatesAndReordersAreDroppedCountedAndNeverApplied) {
