@@ -154,8 +154,7 @@ TEST(Relay, DelayRaisesTheMeasuredRoundTripAndTheSupervisorsModelMatchesAnalyze)
   if (analysed) {
     ASSERT_TRUE(status->report().has_max_stable_slave_stiffness_n_per_m())
         << status->report().DebugString();
-    EXPECT_NEAR(status->report().max_stable_slave_stiffness_n_per_m(), *analysed,
-                1e-3 * *analysed);
+    EXPECT_NEAR(status->report().max_stable_slave_stiffness_n_per_m(), *analysed, 1e-3 * *analysed);
     EXPECT_LT(*analysed, *one_sample);
   } else {
     EXPECT_FALSE(status->report().has_max_stable_slave_stiffness_n_per_m())
