@@ -215,7 +215,10 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
                          std::ceil(static_cast<double>(r.measured_round_trip_ns()) / 1e6 - 1e-9)))
       << r.DebugString();
   EXPECT_GE(r.measured_round_trip_ns(), 4'000'000);
-  const auto limit = [&](int n) {
+  // On a loaded host the p99 can reach a round trip with no stable stiffness at all (12
+  // samples once, with the rest of the suite beside it): then the analyser has no limit, the
+  // supervisor has none either, and the guard halves the wall.
+  const auto limit = [&](int n) -> std::optional<double> {
     const CliResult a = teleopctl("analyze " + config.string() +
                                       " --max-stiffness slave --json --set "
                                       "round_trip_delay_samples=" +
@@ -223,31 +226,38 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
                                   false);
     EXPECT_TRUE(a.exit_code == 0 || a.exit_code == 3) << a.out;
     const nlohmann::json v =
-        nlohmann::json::parse(a.out)["limits"][0]["max_stable_stiffness_N_per_m"];
-    EXPECT_TRUE(v.is_number()) << "no stable stiffness at " << n << " samples:\n" << a.out;
-    return v.is_number() ? v.get<double>() : 0.0;
+        nlohmann::json::parse(a.out).at("limits").at(0).at("max_stable_stiffness_N_per_m");
+    if (!v.is_number()) return std::nullopt;
+    return v.get<double>();
   };
-  const double analysed = limit(samples);
-  const double one_sample = limit(1);
-  ASSERT_TRUE(r.has_max_stable_slave_stiffness_n_per_m());
-  EXPECT_NEAR(r.max_stable_slave_stiffness_n_per_m(), analysed, 1e-3 * analysed);
-  EXPECT_LT(analysed, one_sample);
+  const std::optional<double> analysed = limit(samples);
+  const std::optional<double> one_sample = limit(1);
+  ASSERT_TRUE(one_sample.has_value());
+  if (analysed) {
+    ASSERT_TRUE(r.has_max_stable_slave_stiffness_n_per_m()) << r.DebugString();
+    EXPECT_NEAR(r.max_stable_slave_stiffness_n_per_m(), *analysed, 1e-3 * *analysed);
+    EXPECT_LT(*analysed, *one_sample);
+  } else {
+    EXPECT_FALSE(r.has_max_stable_slave_stiffness_n_per_m()) << r.DebugString();
+  }
   std::cout << "across the veth with 2-3 ms each way: round trip p50 "
             << static_cast<double>(link.round_trip_p50_ns()) * 1e-6 << " ms, p99 "
             << static_cast<double>(link.round_trip_p99_ns()) * 1e-6 << " ms; supervisor model "
-            << samples << " samples, slave limit " << r.max_stable_slave_stiffness_n_per_m()
-            << " N/m; teleopctl analyze " << analysed << " N/m (one sample: " << one_sample
-            << " N/m)\n";
+            << samples << " samples, slave limit "
+            << (analysed ? std::to_string(*analysed) + " N/m" : std::string("none"))
+            << "; one sample: " << *one_sample << " N/m\n";
   // The 3500 N/m wall is within the one-sample limit but not within this one: the guard
   // lowered it (an ACTION naming the grown round trip), and the slave runs with what it put
-  // in force, below the new limit.
-  ASSERT_LT(analysed, 3500.0);
-  ASSERT_GT(one_sample, 3500.0);
+  // in force, below the new limit (half of it), or half the wall where there is no limit.
+  if (analysed) {
+    ASSERT_LT(*analysed, 3500.0);
+  }
+  ASSERT_GT(*one_sample, 3500.0);
   ASSERT_TRUE(st.wait_for([&](const v1::Telemetry& t) {
     return t.active().change_id() > 0 && t.active().ramp_progress() == 1.0;
   })) << logs();
   const double in_force = st.last()->active().slave_fixture_stiffness_n_per_m();
-  EXPECT_LT(in_force, analysed);
+  EXPECT_LE(in_force, analysed ? 0.5 * *analysed + 1e-6 : 0.5 * 3500.0 + 1e-6);
   std::cout << "the guard lowered the wall from 3500 to " << in_force << " N/m\n";
   EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
   EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
