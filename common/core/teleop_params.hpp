@@ -27,6 +27,7 @@ struct Gains {
   double kvm{0.0};
   double kvs{0.0};
   double kfm{0.0};
+  [[nodiscard]] bool operator==(const Gains&) const = default;
 };
 
 // Slave follows position * x_m; master feels force * (...). Both 1 in the paper.

@@ -188,6 +188,11 @@ ModelBlock DiscreteModel::build_block(bool with_master, bool with_slave,
   ModelBlock block;
   block.a = std::move(A);
   block.includes_master = with_master;
+  block.delay_first = delay > 0 ? id0 : -1;
+  block.delay = delay;
+  block.delay_source = delay > 0 ? ixm : -1;
+  block.master_position = ixm;
+  block.slave_position = ixs;
   // Paper realisation per included side: X(k), X(k-1), X(k-2) and its held input.
   const int paper_states = (with_master ? 4 : 0) + (with_slave ? 4 : 0) + delay;
   block.structural_zeros = paper_states - n;

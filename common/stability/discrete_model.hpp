@@ -29,6 +29,15 @@ struct ModelBlock {
   // inputs F_h*(k-1), F_e(k-1) and the X(k-2) of a controller with no velocity term.
   int structural_zeros{0};
   bool includes_master{false};
+  // Where the round-trip delay chain sits (stiffness crossings eliminate it as z^-d):
+  // states [delay_first, delay_first + delay) hold x_m(k-1) ... x_m(k-d), fed from
+  // `delay_source` (the master position); only the last of them is read by other rows.
+  int delay_first{-1};
+  int delay{0};
+  int delay_source{-1};
+  // The position state each side's fixture stiffness multiplies (-1 when the side is absent).
+  int master_position{-1};
+  int slave_position{-1};
 };
 
 // Everything about the loop that does not depend on the human or on fixture stiffness,

@@ -63,8 +63,8 @@ std::optional<double> master_passivity_limit(const TeleopParams& p) {
   return std::max(0.0, 2.0 * (b - virtual_damping) / p.period_s() - beta * p.gains.kpm);
 }
 
-StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
-                                    const SearchOptions& options) {
+StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
+                                         const SearchOptions& options) {
   const LoopEvaluator ev(params, side == Side::kMaster, side == Side::kSlave);
   const double other = side == Side::kMaster ? params.slave_fixture.stiffness_N_per_m
                                              : params.master_fixture.stiffness_N_per_m;

@@ -29,11 +29,26 @@ struct StiffnessLimit {
   int band_verifications{0};          // whole-band sweeps
   // The model is not finite (verdict invalid): no limit, and the reason says why.
   bool invalid{false};
+  // Exact limits (docs/stability-limits.md): G evaluated along the admissible boundary, the
+  // crossings found, and intervals whose one spectrum disagreed with the crossings found (a
+  // crossing the sampler missed; the limit then comes from a scan inside that interval).
+  long boundary_points{0};
+  long crossings_found{0};
+  int fallbacks{0};
+  // The limit is a crossing where a mode only touches the boundary within the numerical error.
+  bool uncertain{false};
 };
 
 // Searches on the current worst human (geometric scan, then bisection), verifies the whole
 // band at the answer and at halvings below it, and repeats with whichever human fails there
 // until the band agrees. The other side's fixture is held at its configured value.
+[[nodiscard]] StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
+                                                       const SearchOptions& options = {});
+
+// Exact: for each human, every stiffness at which a mode crosses the admissible boundary (the
+// unit circle, or the constant-zeta spiral for a required damping ratio), each interval between
+// crossings confirmed with one spectrum; the answer is the first crossing out of the region
+// over the band, whatever lies between the crossings. Humans are shared between threads.
 [[nodiscard]] StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
                                                   const SearchOptions& options = {});
 

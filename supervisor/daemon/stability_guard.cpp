@@ -123,12 +123,78 @@ Decision StabilityGuard::check(const LiveInputs& current, const ChangeRequest& c
     d.reason =
         fmt::format("refused: predicted minimum damping ratio {:.4f} is below the required {:.4f}",
                     a.min_damping_ratio, a.required_damping_ratio);
+  } else if (const std::string why = path_refusal(current, d.proposed); !why.empty()) {
+    d.reason = "refused: " + why;
   } else {
     d.accepted = true;
     d.reason = fmt::format("accepted: predicted minimum damping ratio {:.4f} (required {:.4f})",
                            a.min_damping_ratio, a.required_damping_ratio);
   }
   return d;
+}
+
+// A change ramps from what is in force to what is asked (docs/stability-limits.md). A
+// fixture's ramp is checked exactly: the limit L is the first stiffness at which any mode
+// leaves the admissible region, so [0, L] is admissible and nothing above L is reachable
+// without crossing L. A ramp is accepted when it ends at or below L and either starts there
+// too or starts from a stiffness that is itself not admissible (a rescue: the ramp moves
+// monotonically into the region). A target above L, or a start in a stable window above L,
+// is refused even when the end point alone is stable. Gains enter the loop non-linearly: their
+// ramp is checked at kGainRampPoints - 1 evenly spaced intermediate points, fixtures ramping
+// with them.
+std::string StabilityGuard::path_refusal(const LiveInputs& from, const LiveInputs& to) {
+  const double required = configured_.analysis.required_damping_ratio;
+  auto admissible = [&](const LiveInputs& in) {
+    const stability::AnalysisResult r = stability::analyze(params_for(in));
+    return r.verdict == stability::Verdict::kStable && r.min_damping_ratio >= required;
+  };
+  for (const bool slave : {false, true}) {
+    const double a = slave ? from.slave_fixture_N_per_m : from.master_fixture_N_per_m;
+    const double b = slave ? to.slave_fixture_N_per_m : to.master_fixture_N_per_m;
+    if (a == b || !(std::max(a, b) > 0.0)) continue;
+    const stability::StiffnessLimit l = stability::max_stable_stiffness(
+        params_for(to), slave ? stability::Side::kSlave : stability::Side::kMaster);
+    if (!l.max_stable_stiffness_N_per_m) continue;  // the end point's own verdict decides
+    const double limit = *l.max_stable_stiffness_N_per_m;
+    const char* name = slave ? "slave" : "master";
+    if (b > limit) {
+      return fmt::format(
+          "the {} fixture's ramp from {:g} to {:g} N/m passes {:g} N/m, where a mode leaves the "
+          "admissible region (every stiffness up to there is admissible)",
+          name, a, b, limit);
+    }
+    LiveInputs start = to;
+    (slave ? start.slave_fixture_N_per_m : start.master_fixture_N_per_m) = a;
+    if (a > limit && admissible(start)) {
+      return fmt::format(
+          "the {} fixture's ramp from {:g} to {:g} N/m passes {:g} N/m: {:g} N/m lies in a stable "
+          "window above an unstable one",
+          name, a, b, limit, a);
+    }
+  }
+  if (from.gains == to.gains) return {};
+  for (int i = 1; i < kGainRampPoints; ++i) {
+    const double f = static_cast<double>(i) / kGainRampPoints;
+    auto mix = [f](double x, double y) { return x + f * (y - x); };
+    LiveInputs mid = to;
+    mid.gains.kpm = mix(from.gains.kpm, to.gains.kpm);
+    mid.gains.kps = mix(from.gains.kps, to.gains.kps);
+    mid.gains.kdm = mix(from.gains.kdm, to.gains.kdm);
+    mid.gains.kds = mix(from.gains.kds, to.gains.kds);
+    mid.gains.kvm = mix(from.gains.kvm, to.gains.kvm);
+    mid.gains.kvs = mix(from.gains.kvs, to.gains.kvs);
+    mid.gains.kfm = mix(from.gains.kfm, to.gains.kfm);
+    mid.master_fixture_N_per_m = mix(from.master_fixture_N_per_m, to.master_fixture_N_per_m);
+    mid.slave_fixture_N_per_m = mix(from.slave_fixture_N_per_m, to.slave_fixture_N_per_m);
+    const stability::AnalysisResult r = stability::analyze(params_for(mid));
+    if (!(r.verdict == stability::Verdict::kStable &&
+          r.min_damping_ratio >= configured_.analysis.required_damping_ratio)) {
+      return fmt::format(
+          "the ramp to the new gains is {} {:.0f} % of the way (minimum damping ratio {:.4f})",
+          stability::to_string(r.verdict), 100.0 * f, r.min_damping_ratio);
+    }
+  }
+  return {};
 }
 
 double StabilityGuard::lowered_stiffness(const LiveInputs& current, bool slave_side,

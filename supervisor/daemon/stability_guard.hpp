@@ -85,6 +85,11 @@ class StabilityGuard {
 
   [[nodiscard]] TeleopParams params_for(const LiveInputs& inputs) const;
 
+  // Why the ramp from `from` to `to` may leave the admissible region (empty when it cannot):
+  // fixtures exactly, gains at kGainRampPoints - 1 intermediate points.
+  [[nodiscard]] std::string path_refusal(const LiveInputs& from, const LiveInputs& to);
+  static constexpr int kGainRampPoints = 16;
+
   // The inputs as the ParameterUpdate a node would be sent (fixture positions configured),
   // for config::check_parameter_update.
   [[nodiscard]] v1::ParameterUpdate to_update(const LiveInputs& inputs) const;

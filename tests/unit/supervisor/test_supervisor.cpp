@@ -79,6 +79,46 @@ TEST(StabilityGuard, AGrowingRoundTripLowersTheLimitAndTheFallbackStaysBelowIt) 
   EXPECT_TRUE(guard.check(in, c).accepted);
 }
 
+// Issue 15: a change ramps from the value in force to the new one, so the guard checks the
+// path. The issue's example is unstable between about 1325 and 1357 N/m and stable at 1000 and
+// 2000 N/m (each point by the 50-digit reference in test_exact_limits.cpp): the ramp from 1000
+// to 2000 crosses the window and is refused although its end alone is stable.
+TEST(StabilityGuard, AFixtureRampThroughAnUnstableWindowIsRefusedThoughItsEndIsStable) {
+  TeleopParams p;
+  p.sample_rate_hz = 500.0;
+  p.master_device = {0.04, 0.41};
+  p.slave_device = {0.036, 0.49};
+  p.gains = Gains{1018.83, 141.622, 2.71629, 0.68129, 0, 0, 0};
+  p.scaling = {1.0, 2.0};
+  p.velocity_cutoff_hz = 100.0;
+  p.human.kind = HumanKind::kFixed;
+  p.human.fixed = {0.01, 3.179, 300.0};
+  p.slave_fixture = {1000.0, 0.0};
+  StabilityGuard guard(p);
+  const LiveInputs now = guard.configured_inputs();
+  LiveInputs end = now;
+  end.slave_fixture_N_per_m = 2000.0;
+  EXPECT_TRUE(guard.assess(end).acceptable()) << "the end point alone is stable";
+  ChangeRequest through;
+  through.slave_fixture_N_per_m = 2000.0;
+  const Decision refused = guard.check(now, through);
+  EXPECT_FALSE(refused.accepted);
+  EXPECT_NE(refused.reason.find("ramp from 1000 to 2000 N/m passes 1325"), std::string::npos)
+      << refused.reason;
+  ChangeRequest below;
+  below.slave_fixture_N_per_m = 1300.0;
+  EXPECT_TRUE(guard.check(now, below).accepted) << guard.check(now, below).reason;
+  // Down from inside the upper stable interval, through the window, is refused too; down from
+  // inside the window itself (not admissible) is the way out, accepted.
+  ChangeRequest down;
+  down.slave_fixture_N_per_m = 1000.0;
+  EXPECT_FALSE(guard.check(end, down).accepted);
+  LiveInputs inside = now;
+  inside.slave_fixture_N_per_m = 1340.0;
+  EXPECT_FALSE(guard.assess(inside).acceptable());
+  EXPECT_TRUE(guard.check(inside, down).accepted) << guard.check(inside, down).reason;
+}
+
 TEST(StabilityGuard, NonFiniteOrNegativeRequestsAreRefusedByName) {
   StabilityGuard guard(fig6());
   ChangeRequest c;
