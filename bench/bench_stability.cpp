@@ -59,6 +59,33 @@ void BM_MaxStiffnessMasterBand448(benchmark::State& state) {
 }
 BENCHMARK(BM_MaxStiffnessMasterBand448)->Unit(benchmark::kMillisecond);
 
+// The old scan (x1.2, bisection, verified halvings) on the same band, for comparison.
+void BM_MaxStiffnessSlaveBand448Scan(benchmark::State& state) {
+  const TeleopParams p = paddles(HumanKind::kBand);
+  for (auto _ : state) benchmark::DoNotOptimize(max_stable_stiffness_scan(p, Side::kSlave));
+}
+BENCHMARK(BM_MaxStiffnessSlaveBand448Scan)->Unit(benchmark::kMillisecond);
+
+// Issue 15: the band at 1 kHz (the issue's 3 ms target) and a 200-sample round trip.
+void BM_MaxStiffnessSlaveBand448At1kHz(benchmark::State& state) {
+  TeleopParams p = paddles(HumanKind::kBand);
+  p.sample_rate_hz = 1000.0;
+  for (auto _ : state) benchmark::DoNotOptimize(max_stable_stiffness(p, Side::kSlave));
+}
+BENCHMARK(BM_MaxStiffnessSlaveBand448At1kHz)->Unit(benchmark::kMillisecond);
+
+void BM_MaxStiffnessSlaveBand448RoundTrip200(benchmark::State& state) {
+  TeleopParams p = paddles(HumanKind::kBand);
+  p.sample_rate_hz = 1000.0;
+  p.master_device = {0.04, 2.0};
+  p.slave_device = {0.036, 2.0};
+  p.gains = {20.0, 20.0, 1.0, 1.0, 0.0, 0.0, 0.0};
+  p.velocity_cutoff_hz = 0.0;
+  p.round_trip_delay_samples = 200;
+  for (auto _ : state) benchmark::DoNotOptimize(max_stable_stiffness(p, Side::kSlave));
+}
+BENCHMARK(BM_MaxStiffnessSlaveBand448RoundTrip200)->Unit(benchmark::kMillisecond)->Iterations(1);
+
 }  // namespace
 
 BENCHMARK_MAIN();
