@@ -16,7 +16,7 @@ constexpr double kPi = std::numbers::pi;
 // tracked function (det(zI - A(0)), the numerator of G, or the loop's determinant at K): a
 // crossing is then a sign change of sin(arg G) between two samples, and a count of zeros is an
 // unwrapped phase.
-constexpr double kMaxPhaseStep = kPi / 4.0;
+constexpr double kMaxPhaseStep = kPi / 2.0;
 constexpr double kMinWidth = 1e-12;  // rad: the finest the sampler splits
 constexpr int kCoreCapacity = 16;    // the core is 6x6 at most in this model
 
@@ -96,64 +96,104 @@ RankOneLoop::RankOneLoop(const ModelBlock& at_zero, const ModelBlock& at_one, in
   }
 }
 
-RankOneLoop::Point RankOneLoop::evaluate(std::complex<double> z) const {
-  // [M | u] with M = zI - A_core - z^-d link e_source^T, eliminated with partial pivoting.
-  const int m = m_;
-  const int w = m + 1;
-  std::array<Cd, kCoreCapacity*(kCoreCapacity + 1)> s{};
-  for (int i = 0; i < m; ++i) {
-    for (int j = 0; j < m; ++j) s[static_cast<std::size_t>(i * w + j)] = -core_(i, j);
-    s[static_cast<std::size_t>(i * w + i)] += z;
-    s[static_cast<std::size_t>(i * w + m)] = u_(i);
+namespace {
+
+// [M | u] eliminated with partial pivoting; returns the phase of det M and x_position of
+// M x = u. Fixed sizes (the core is 2 to 6 states) let the compiler unroll it.
+template <int kM>
+bool solve(const Eigen::MatrixXd& core, const Eigen::VectorXd& u, const Eigen::VectorXd& link,
+           int source, int position, int m, Cd z, Cd zd, Cd& phase_out, Cd& g_out) {
+  constexpr int kCap = kM > 0 ? kM : kCoreCapacity;
+  const int n = kM > 0 ? kM : m;
+  std::array<std::array<Cd, kCap + 1>, kCap> s;
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) s[i][j] = Cd(-core(i, j), 0.0);
+    s[i][i] += z;
+    s[i][n] = Cd(u(i), 0.0);
+    if (source >= 0) s[i][source] -= zd * link(i);
   }
-  if (delay_ > 0) {
-    const Cd zd = std::exp(-static_cast<double>(delay_) * std::log(z));
-    for (int i = 0; i < m; ++i) s[static_cast<std::size_t>(i * w + source_)] -= zd * link_(i);
-  }
-  Point p;
   Cd phase(1.0, 0.0);
-  for (int k = 0; k < m; ++k) {
+  for (int k = 0; k < n; ++k) {
     int piv = k;
-    double best = std::abs(s[static_cast<std::size_t>(k * w + k)]);
-    for (int i = k + 1; i < m; ++i) {
-      const double v = std::abs(s[static_cast<std::size_t>(i * w + k)]);
+    double best = std::norm(s[k][k]);
+    for (int i = k + 1; i < n; ++i) {
+      const double v = std::norm(s[i][k]);
       if (v > best) {
         best = v;
         piv = i;
       }
     }
-    if (!(best > 0.0) || !std::isfinite(best)) {
-      p.singular = true;
-      p.p0_phase = phase;
-      p.g = Cd(std::numeric_limits<double>::infinity(), 0.0);
-      return p;
-    }
+    if (!(best > 0.0) || !std::isfinite(best)) return false;
     if (piv != k) {
-      for (int j = k; j < w; ++j) {
-        std::swap(s[static_cast<std::size_t>(k * w + j)], s[static_cast<std::size_t>(piv * w + j)]);
-      }
+      std::swap(s[k], s[piv]);
       phase = -phase;
     }
-    const Cd pivot = s[static_cast<std::size_t>(k * w + k)];
-    phase *= pivot / best;
+    const Cd pivot = s[k][k];
+    phase *= pivot / std::sqrt(best);
     const Cd inv = 1.0 / pivot;
-    for (int i = k + 1; i < m; ++i) {
-      const Cd f = s[static_cast<std::size_t>(i * w + k)] * inv;
-      if (f == Cd(0.0, 0.0)) continue;
-      for (int j = k + 1; j < w; ++j) {
-        s[static_cast<std::size_t>(i * w + j)] -= f * s[static_cast<std::size_t>(k * w + j)];
-      }
+    for (int i = k + 1; i < n; ++i) {
+      const Cd f = s[i][k] * inv;
+      for (int j = k + 1; j <= n; ++j) s[i][j] -= f * s[k][j];
     }
   }
-  std::array<Cd, kCoreCapacity> x{};
-  for (int i = m - 1; i >= 0; --i) {
-    Cd acc = s[static_cast<std::size_t>(i * w + m)];
-    for (int j = i + 1; j < m; ++j)
-      acc -= s[static_cast<std::size_t>(i * w + j)] * x[static_cast<std::size_t>(j)];
-    x[static_cast<std::size_t>(i)] = acc / s[static_cast<std::size_t>(i * w + i)];
+  std::array<Cd, kCap> x{};
+  for (int i = n - 1; i >= 0; --i) {
+    Cd acc = s[i][n];
+    for (int j = i + 1; j < n; ++j) acc -= s[i][j] * x[j];
+    x[i] = acc / s[i][i];
   }
-  p.p0_phase = unit(phase);
-  p.g = x[static_cast<std::size_t>(position_)];
+  phase_out = unit(phase);
+  g_out = x[position];
+  return true;
+}
+
+}  // namespace
+
+BoundaryPoint RankOneLoop::evaluate(double theta, const AdmissibleBoundary& boundary) const {
+  BoundaryPoint p;
+  p.theta = theta;
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    const double t = p.theta;
+    const Cd z = boundary.at(t);
+    // z^-d = |z|^-d e^{-i d theta}, formed from theta (no complex power of a rounded z).
+    Cd zd(0.0, 0.0);
+    if (delay_ > 0) {
+      const double d = static_cast<double>(delay_);
+      zd = std::polar(std::exp(d * boundary.decay_per_radian() * t), -d * t);
+    }
+    bool ok = false;
+    switch (m_) {
+      case 2:
+        ok = solve<2>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
+                      p.g);
+        break;
+      case 3:
+        ok = solve<3>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
+                      p.g);
+        break;
+      case 4:
+        ok = solve<4>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
+                      p.g);
+        break;
+      case 5:
+        ok = solve<5>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
+                      p.g);
+        break;
+      case 6:
+        ok = solve<6>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
+                      p.g);
+        break;
+      default:
+        ok = solve<0>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
+                      p.g);
+        break;
+    }
+    if (ok) return p;
+    // A mode of A(0) exactly here: look a hair beside it.
+    p.singular = true;
+    p.theta = t == 0.0 ? 1e-9 : (t == kPi ? kPi - 1e-9 : t + 1e-13);
+  }
+  p.g = Cd(std::numeric_limits<double>::infinity(), 0.0);
   return p;
 }
 
@@ -161,47 +201,33 @@ namespace {
 
 // Samples of the boundary's upper half, refined until every tracked phase moves by at most
 // kMaxPhaseStep between neighbours.
-struct Sample {
-  double theta{0.0};
-  RankOneLoop::Point point{};
-  std::array<Cd, 2> tracked{};  // unit phases
-};
-
-template <class Eval>
-void refine(const Sample& a, const Sample& b, std::vector<Sample>& out, bool& unresolved,
-            const Eval& eval, int depth = 0) {
+template <class Track, class Eval>
+void refine(const BoundaryPoint& a, const BoundaryPoint& b, std::vector<BoundaryPoint>& out,
+            bool& unresolved, const Track& track, const Eval& eval, int depth = 0) {
+  const auto ta = track(a);
+  const auto tb = track(b);
   bool split = false;
-  for (std::size_t i = 0; i < a.tracked.size(); ++i) {
-    split = split || std::abs(step(a.tracked[i], b.tracked[i])) > kMaxPhaseStep;
+  for (std::size_t i = 0; i < ta.size(); ++i) {
+    split = split || std::abs(step(ta[i], tb[i])) > kMaxPhaseStep;
   }
   if (split && b.theta - a.theta > kMinWidth && depth < 64) {
-    const Sample mid = eval(0.5 * (a.theta + b.theta));
-    refine(a, mid, out, unresolved, eval, depth + 1);
-    refine(mid, b, out, unresolved, eval, depth + 1);
+    const BoundaryPoint mid = eval(0.5 * (a.theta + b.theta));
+    refine(a, mid, out, unresolved, track, eval, depth + 1);
+    refine(mid, b, out, unresolved, track, eval, depth + 1);
     return;
   }
   if (split) unresolved = true;
   out.push_back(b);
 }
 
-template <class Eval>
-std::vector<Sample> sample_boundary(int order, bool& unresolved, const Eval& eval) {
-  const int intervals = 8 * order + 16;
-  std::vector<Sample> out;
-  out.reserve(static_cast<std::size_t>(intervals) * 2);
-  out.push_back(eval(0.0));
-  for (int j = 1; j <= intervals; ++j) {
-    const double theta = j == intervals ? kPi : kPi * j / intervals;
-    const Sample next = eval(theta);
-    const Sample prev = out.back();
-    refine(prev, next, out, unresolved, eval);
-  }
-  return out;
-}
-
 double sin_arg(Cd g) {
   const double a = std::abs(g);
   return a > 0.0 && std::isfinite(a) ? g.imag() / a : 0.0;
+}
+
+// The phases a crossing search keeps resolved: det M and the numerator of G (-det M G).
+std::array<Cd, 2> crossing_phases(const BoundaryPoint& p) {
+  return {p.p0_phase, unit(-p.p0_phase * p.g)};
 }
 
 }  // namespace
@@ -210,19 +236,10 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
                                       double max_stiffness_N_per_m) const {
   const AdmissibleBoundary boundary(required_damping_ratio);
   CrossingSearch out;
+  out.required_damping_ratio = required_damping_ratio;
   auto eval = [&](double theta) {
     ++out.boundary_points;
-    Sample s;
-    s.theta = theta;
-    s.point = evaluate(boundary.at(theta));
-    if (s.point.singular && theta > 0.0 && theta < kPi) {
-      // A mode of A(0) exactly here: look a hair beside it.
-      s.point = evaluate(boundary.at(theta + 1e-13));
-    }
-    s.tracked[0] = s.point.p0_phase;
-    // det(M - K u e^T) = P0 + K P1 with P1 = -P0 G.
-    s.tracked[1] = s.point.singular ? s.point.p0_phase : unit(-s.point.p0_phase * s.point.g);
-    return s;
+    return evaluate(theta, boundary);
   };
   auto add = [&](double theta, Cd g, bool near_double) {
     if (!(g.real() > 0.0) || !std::isfinite(g.real())) return;
@@ -230,28 +247,36 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
     if (!(k > 1e-9) || k > max_stiffness_N_per_m) return;
     out.crossings.push_back({k, boundary.at(theta), near_double});
   };
-  // The real-axis ends of the boundary: z = 1 and z = -|z(pi)|, where G is real.
-  for (const double end : {0.0, kPi}) {
-    const Point p = evaluate(boundary.at(end));
-    ++out.boundary_points;
-    if (!p.singular) add(end, Cd(p.g.real(), 0.0), false);
+  // The initial grid: the phase of det M turns by about pi per mode inside the region.
+  const int intervals = 4 * order() + 8;
+  std::vector<BoundaryPoint>& s = out.samples;
+  s.reserve(static_cast<std::size_t>(intervals) * 2);
+  s.push_back(eval(0.0));
+  for (int j = 1; j <= intervals; ++j) {
+    const BoundaryPoint next = eval(j == intervals ? kPi : kPi * j / intervals);
+    const BoundaryPoint prev = s.back();
+    refine(prev, next, s, out.unresolved, crossing_phases, eval);
   }
-  std::vector<Sample> s = sample_boundary(order(), out.unresolved, eval);
+  // The real-axis ends of the boundary (z = 1, z = -|z(pi)|), where G is real.
+  for (const BoundaryPoint* end : {&s.front(), &s.back()}) {
+    if (!end->singular) add(end->theta, Cd(end->g.real(), 0.0), false);
+  }
   // At the ends sin(arg G) is 0 identically: take the sign just inside.
-  if (s.size() >= 2) {
-    s.front() = eval(s[1].theta * 1e-6);
-    s.back() = eval(kPi - (kPi - s[s.size() - 2].theta) * 1e-6);
+  auto h = [](const BoundaryPoint& x) { return sin_arg(x.g); };
+  std::vector<BoundaryPoint> inner = s;
+  if (inner.size() >= 2) {
+    inner.front() = eval(inner[1].theta * 1e-6);
+    inner.back() = eval(kPi - (kPi - inner[inner.size() - 2].theta) * 1e-6);
   }
-  auto h = [](const Sample& x) { return sin_arg(x.point.g); };
   // The root of sin(arg G) in [a, b] (a sign change), by the Illinois method.
-  auto root = [&](Sample a, Sample b) {
+  auto root = [&](BoundaryPoint a, BoundaryPoint b) {
     double fa = h(a);
     double fb = h(b);
     int side = 0;
     for (int it = 0; it < 100 && b.theta - a.theta > 4e-16 * (1.0 + b.theta); ++it) {
       double t = (a.theta * fb - b.theta * fa) / (fb - fa);
       if (!(t > a.theta && t < b.theta)) t = 0.5 * (a.theta + b.theta);
-      const Sample c = eval(t);
+      const BoundaryPoint c = eval(t);
       const double fc = h(c);
       if (fc == 0.0) return c;
       if ((fc > 0.0) == (fb > 0.0)) {
@@ -268,43 +293,50 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
     }
     return std::abs(fa) < std::abs(fb) ? a : b;
   };
-  for (std::size_t j = 0; j + 1 < s.size(); ++j) {
-    const Sample& a = s[j];
-    const Sample& b = s[j + 1];
+  for (std::size_t j = 0; j + 1 < inner.size(); ++j) {
+    const BoundaryPoint& a = inner[j];
+    const BoundaryPoint& b = inner[j + 1];
     const double fa = h(a);
     const double fb = h(b);
-    const bool positive = a.point.g.real() > 0.0 || b.point.g.real() > 0.0;
-    if (!positive) continue;  // a root here has K < 0
+    if (!(a.g.real() > 0.0 || b.g.real() > 0.0)) continue;  // a root here has K < 0
     if ((fa > 0.0) != (fb > 0.0) && fa != 0.0 && fb != 0.0) {
-      const Sample c = root(a, b);
-      add(c.theta, c.point.g, false);
+      const BoundaryPoint c = root(a, b);
+      add(c.theta, c.g, false);
+    }
+  }
+  // A mode that touches the boundary and returns: |sin(arg G)| has a local minimum at a
+  // sample with no sign change on either side. Golden-section search on its neighbours.
+  for (std::size_t j = 1; j + 1 < inner.size(); ++j) {
+    const double f0 = h(inner[j - 1]);
+    const double f1 = h(inner[j]);
+    const double f2 = h(inner[j + 1]);
+    const double sign = f1 > 0.0 ? 1.0 : -1.0;
+    if (!(sign * f0 > 0.0 && sign * f2 > 0.0 && sign * f1 > 0.0)) continue;
+    if (!(std::abs(f1) < std::abs(f0) && std::abs(f1) < std::abs(f2) && std::abs(f1) < 0.3)) {
       continue;
     }
-    // No sign change: a mode may touch the boundary and return between the two samples.
-    if (std::min(std::abs(fa), std::abs(fb)) > 0.2) continue;
-    Sample lo = a;
-    Sample hi = b;
-    Sample best = std::abs(fa) < std::abs(fb) ? a : b;
-    const double sign = fa > 0.0 ? 1.0 : -1.0;
-    // Golden-section search for the least sign * h on [a, b].
+    if (!(inner[j].g.real() > 0.0)) continue;
+    BoundaryPoint lo = inner[j - 1];
+    BoundaryPoint hi = inner[j + 1];
+    BoundaryPoint best = inner[j];
     constexpr double kGolden = 0.6180339887498949;
-    Sample x1 = eval(hi.theta - kGolden * (hi.theta - lo.theta));
-    Sample x2 = eval(lo.theta + kGolden * (hi.theta - lo.theta));
+    BoundaryPoint x1 = eval(hi.theta - kGolden * (hi.theta - lo.theta));
+    BoundaryPoint x2 = eval(lo.theta + kGolden * (hi.theta - lo.theta));
     bool split = false;
-    for (int it = 0; it < 60 && !split; ++it) {
-      for (const Sample* x : {&x1, &x2}) {
+    for (int it = 0; it < 50 && !split && hi.theta - lo.theta > 1e-10 * kPi; ++it) {
+      for (const BoundaryPoint* x : {&x1, &x2}) {
         if (sign * h(*x) <= 0.0) {
-          // Two crossings: one on each side of x.
-          const Sample first = root(a, *x);
-          const Sample second = root(*x, b);
-          add(first.theta, first.point.g, false);
-          add(second.theta, second.point.g, false);
+          // Two crossings, one on each side of x.
+          const BoundaryPoint first = root(inner[j - 1], *x);
+          const BoundaryPoint second = root(*x, inner[j + 1]);
+          add(first.theta, first.g, false);
+          add(second.theta, second.g, false);
           split = true;
           break;
         }
         if (std::abs(h(*x)) < std::abs(h(best))) best = *x;
       }
-      if (split || hi.theta - lo.theta < 1e-14) break;
+      if (split) break;
       if (sign * h(x1) < sign * h(x2)) {
         hi = x2;
         x2 = x1;
@@ -315,7 +347,7 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
         x2 = eval(lo.theta + kGolden * (hi.theta - lo.theta));
       }
     }
-    if (!split && std::abs(h(best)) < 1e-9) add(best.theta, best.point.g, true);
+    if (!split && std::abs(h(best)) < 1e-9) add(best.theta, best.g, true);
   }
   std::sort(out.crossings.begin(), out.crossings.end(), [](const Crossing& x, const Crossing& y) {
     return x.stiffness_N_per_m < y.stiffness_N_per_m;
@@ -323,39 +355,53 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
   return out;
 }
 
-int RankOneLoop::modes_outside(double stiffness_N_per_m, double required_damping_ratio,
+int RankOneLoop::modes_outside(const CrossingSearch& search, double stiffness_N_per_m,
                                long* boundary_points) const {
-  const AdmissibleBoundary boundary(required_damping_ratio);
+  const AdmissibleBoundary boundary(search.required_damping_ratio);
+  const std::vector<BoundaryPoint>& s = search.samples;
+  if (s.size() < 2) return -1;
   bool unresolved = false;
   bool on_boundary = false;
   auto eval = [&](double theta) {
     if (boundary_points != nullptr) ++*boundary_points;
-    Sample s;
-    s.theta = theta;
-    s.point = evaluate(boundary.at(theta));
-    if (s.point.singular) {
-      on_boundary = on_boundary || stiffness_N_per_m == 0.0;
-      s.point = evaluate(boundary.at(theta == kPi ? theta - 1e-13 : theta + 1e-13));
-    }
-    // det(M - K u e^T) = P0 (1 - K G).
-    const Cd factor = 1.0 - stiffness_N_per_m * s.point.g;
-    if (std::abs(factor) == 0.0) on_boundary = true;
-    s.tracked[0] = unit(s.point.p0_phase * factor);
-    s.tracked[1] = s.tracked[0];
-    return s;
+    return evaluate(theta, boundary);
   };
-  const std::vector<Sample> s = sample_boundary(order(), unresolved, eval);
-  if (unresolved || on_boundary) return -1;
+  // det(M - K u e^T) = det M (1 - K G).
+  auto track = [&](const BoundaryPoint& p) {
+    const Cd factor = 1.0 - stiffness_N_per_m * p.g;
+    if (std::abs(factor) == 0.0 || (p.singular && stiffness_N_per_m == 0.0)) on_boundary = true;
+    return std::array<Cd, 1>{unit(p.p0_phase * factor)};
+  };
   double turned = 0.0;
+  std::vector<BoundaryPoint> fine;
   for (std::size_t j = 0; j + 1 < s.size(); ++j) {
-    turned += step(s[j].tracked[0], s[j + 1].tracked[0]);
+    fine.clear();
+    fine.push_back(s[j]);
+    refine(s[j], s[j + 1], fine, unresolved, track, eval);
+    for (std::size_t i = 0; i + 1 < fine.size(); ++i) {
+      turned += step(track(fine[i])[0], track(fine[i + 1])[0]);
+    }
   }
+  if (unresolved || on_boundary) return -1;
   // Zeros inside = (arg change of z^d det(M - K u e^T) along the upper half) / pi.
   const double inside = static_cast<double>(delay_) + turned / kPi;
   const double rounded = std::round(inside);
   if (std::abs(inside - rounded) > 0.25) return -1;
   const int outside = order() - static_cast<int>(rounded);
   return outside < 0 ? -1 : outside;
+}
+
+int RankOneLoop::modes_outside(double stiffness_N_per_m, double required_damping_ratio,
+                               long* boundary_points) const {
+  CrossingSearch grid;
+  grid.required_damping_ratio = required_damping_ratio;
+  const AdmissibleBoundary boundary(required_damping_ratio);
+  const int intervals = 4 * order() + 8;
+  for (int j = 0; j <= intervals; ++j) {
+    if (boundary_points != nullptr) ++*boundary_points;
+    grid.samples.push_back(evaluate(j == intervals ? kPi : kPi * j / intervals, boundary));
+  }
+  return modes_outside(grid, stiffness_N_per_m, boundary_points);
 }
 
 }  // namespace teleop::stability

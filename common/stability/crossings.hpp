@@ -36,12 +36,24 @@ struct Crossing {
   bool near_double{false};
 };
 
+// One point of the boundary's upper half: det(zI - A(0)) (its phase) and G(z).
+struct BoundaryPoint {
+  double theta{0.0};
+  std::complex<double> p0_phase{};  // det M(z) / |det M(z)| (the delay chain's z^d left out)
+  std::complex<double> g{};
+  bool singular{false};  // z is (numerically) a mode of A(0)
+};
+
 struct CrossingSearch {
   std::vector<Crossing> crossings{};  // K in (0, max], ascending
   long boundary_points{0};            // evaluations of G along the boundary
   // Somewhere the boundary passes within the resolution of a pole or zero of G that the
   // sampling could not separate: a crossing may be missing there.
   bool unresolved{false};
+  // The samples (theta ascending over [0, pi]), for counting modes at any K without
+  // sampling again (RankOneLoop::modes_outside).
+  std::vector<BoundaryPoint> samples{};
+  double required_damping_ratio{0.0};
 };
 
 // One block of the loop with the stiffness of one fixture as the free parameter. The
@@ -62,14 +74,14 @@ class RankOneLoop {
   [[nodiscard]] int modes_outside(double stiffness_N_per_m, double required_damping_ratio,
                                   long* boundary_points = nullptr) const;
 
+  // The same from the samples of a crossing search (refined only where K makes the phase
+  // move faster than they resolve); adds its evaluations to `boundary_points`.
+  [[nodiscard]] int modes_outside(const CrossingSearch& search, double stiffness_N_per_m,
+                                  long* boundary_points = nullptr) const;
+
   [[nodiscard]] int order() const { return m_ + delay_; }
 
-  struct Point {
-    std::complex<double> p0_phase{};  // det(zI - A(0)) / |.| on the core (z^-d eliminated)
-    std::complex<double> g{};         // G(z)
-    bool singular{false};             // z is (numerically) a mode of A(0)
-  };
-  [[nodiscard]] Point evaluate(std::complex<double> z) const;
+  [[nodiscard]] BoundaryPoint evaluate(double theta, const AdmissibleBoundary& boundary) const;
 
  private:
   Eigen::MatrixXd core_{};  // A(0) without the delay chain

@@ -5,8 +5,10 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "common/stability/analyzer.hpp"
@@ -32,6 +34,13 @@ struct HumanOutcome {
   long crossings{0};
 };
 
+// One human's loop and its crossings, found once.
+struct HumanCrossings {
+  std::optional<RankOneLoop> loop{};
+  CrossingSearch search{};
+  int outside_at_zero{-1};  // modes outside the region at K = 0 (-1: on the boundary)
+};
+
 class ExactSearch {
  public:
   ExactSearch(const TeleopParams& params, Side side, const LoopEvaluator& ev, double other,
@@ -54,28 +63,36 @@ class ExactSearch {
     throw std::invalid_argument("the searched fixture is in no block of the loop");
   }
 
-  // Whether stiffness k meets the requirement for this human; counts its cost.
-  bool admissible(std::size_t human, const RankOneLoop& loop, double k, HumanOutcome& o) const {
-    const double required = p_.analysis.required_damping_ratio;
-    if (loop.order() <= kSpectrumOrderLimit) {
+  [[nodiscard]] HumanCrossings crossings(std::size_t human) const {
+    HumanCrossings h;
+    h.loop.emplace(loop(human));
+    h.search = h.loop->crossings(p_.analysis.required_damping_ratio, cap_);
+    h.outside_at_zero = h.loop->modes_outside(h.search, 0.0, &h.search.boundary_points);
+    return h;
+  }
+
+  // Whether stiffness k meets the requirement for this human: by one spectrum, or by counting
+  // the modes outside the region along the boundary (the other blocks do not depend on k and
+  // met the requirement at the lower end).
+  bool admissible(std::size_t human, const HumanCrossings& h, double k, bool by_spectrum,
+                  HumanOutcome& o) const {
+    if (by_spectrum) {
       ++o.spectra;
       const Spectrum s = ev_.spectrum(human, kmvf(k), ksvf(k), false);
-      return s.verdict == Verdict::kStable && s.min_damping_ratio >= required;
+      return s.verdict == Verdict::kStable &&
+             s.min_damping_ratio >= p_.analysis.required_damping_ratio;
     }
-    // The other blocks do not depend on k and met the requirement at the lower end.
-    return loop.modes_outside(k, required, &o.boundary_points) == 0;
+    return h.loop->modes_outside(h.search, k, &o.boundary_points) == 0;
   }
 
   // The first stiffness above `lo` (known admissible) that fails for this human, given that
-  // none below `best` matters.
-  HumanOutcome human_limit(std::size_t human, double lo, double best) const {
+  // none above `best` matters; each interval between crossings is confirmed once.
+  HumanOutcome human_limit(std::size_t human, const HumanCrossings& h, double lo, double best,
+                           bool by_spectrum) const {
     HumanOutcome o;
-    const RankOneLoop l = loop(human);
-    const CrossingSearch found = l.crossings(p_.analysis.required_damping_ratio, cap_);
-    o.boundary_points += found.boundary_points;
-    o.crossings = static_cast<long>(found.crossings.size());
+    o.crossings = static_cast<long>(h.search.crossings.size());
     std::vector<Crossing> cs;
-    for (const Crossing& c : found.crossings) {
+    for (const Crossing& c : h.search.crossings) {
       if (c.stiffness_N_per_m > lo * (1.0 + 1e-12)) cs.push_back(c);
     }
     // Interval j runs from edge(j) to edge(j + 1): lo, the crossings, the cap.
@@ -84,13 +101,13 @@ class ExactSearch {
       const double from = edge(j);
       if (from > best) return o;  // this human cannot lower the answer
       const double to = j < cs.size() ? cs[j].stiffness_N_per_m : cap_;
-      // One spectrum inside the interval (just above the last crossing for the open end).
+      // Inside the interval (just above the last crossing for the open end).
       const double probe = j < cs.size() ? 0.5 * (from + to) : std::min(cap_, from * 1.001 + 1e-9);
-      if (admissible(human, l, probe, o)) continue;
+      if (admissible(human, h, probe, by_spectrum, o)) continue;
       if (j == 0) {
         // No crossing found below a failing stiffness: one was missed. Find it by scan.
         o.fallback = true;
-        o.limit = scan(human, l, lo, probe, o);
+        o.limit = scan(human, h, lo, probe, o);
         return o;
       }
       o.limit = from;
@@ -98,20 +115,21 @@ class ExactSearch {
       return o;
     }
     // The last interval runs to the cap: it must pass there too, else a crossing was missed.
-    if (!admissible(human, l, cap_, o)) {
+    if (!admissible(human, h, cap_, by_spectrum, o)) {
       o.fallback = true;
-      o.limit = scan(human, l, edge(cs.size()), cap_, o);
+      o.limit = scan(human, h, edge(cs.size()), cap_, o);
     }
     return o;
   }
 
-  // The old way inside one interval: geometric scan, then bisection to the tolerance.
-  double scan(std::size_t human, const RankOneLoop& l, double lo, double fail,
+  // The old way inside one interval, by spectra: geometric scan, then bisection.
+  double scan(std::size_t human, const HumanCrossings& h, double lo, double fail,
               HumanOutcome& o) const {
     const double tol = p_.analysis.stiffness_tolerance_N_per_m;
+    const bool by_spectrum = h.loop->order() <= kSpectrumOrderLimit;
     double pass = lo;
     for (double k = std::max(lo * 1.01, lo + tol); k < fail; k *= 1.01) {
-      if (!admissible(human, l, k, o)) {
+      if (!admissible(human, h, k, by_spectrum, o)) {
         fail = k;
         break;
       }
@@ -120,7 +138,7 @@ class ExactSearch {
     while (fail - pass > tol) {
       const double mid = 0.5 * (pass + fail);
       if (mid <= pass || mid >= fail) break;
-      (admissible(human, l, mid, o) ? pass : fail) = mid;
+      (admissible(human, h, mid, by_spectrum, o) ? pass : fail) = mid;
     }
     return pass;
   }
@@ -132,6 +150,31 @@ class ExactSearch {
   double other_;
   double cap_;
 };
+
+// Runs f(i) for i in [0, n) on the machine's cores.
+template <class F>
+void parallel_for(std::size_t n, const F& f) {
+  std::atomic<std::size_t> next{0};
+  std::mutex error_mutex;
+  std::exception_ptr error;
+  auto work = [&] {
+    for (std::size_t i = next++; i < n; i = next++) {
+      try {
+        f(i);
+      } catch (...) {
+        const std::lock_guard<std::mutex> lock(error_mutex);
+        error = std::current_exception();
+        return;
+      }
+    }
+  };
+  const unsigned threads = n < 16 ? 1U : std::clamp(std::thread::hardware_concurrency(), 1U, 8U);
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+}
 
 // Every mode inside the admissible region by more than its error bound: the disc of that
 // radius about it stays inside (checked at its four extreme points for the damping ratio).
@@ -199,68 +242,65 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
     return ev.sweep(side == Side::kMaster ? k : other, side == Side::kSlave ? k : other, required);
   };
 
-  // The lower end, as the search always had it: the whole band at K = 0 (every block, the
-  // ones the stiffness does not enter included); a rigid-body mode at z = 1 exactly at K = 0
-  // moves the lower end to the tolerance.
-  BandResult lo_band = sweep(0.0);
-  double k_lo = 0.0;
-  if (!meets_requirement(lo_band, required)) {
-    const BandResult tiny =
-        lo_band.verdict == Verdict::kUncertain ? sweep(tol) : BandResult{Verdict::kUnstable};
-    if (lo_band.verdict == Verdict::kUncertain && meets_requirement(tiny, required)) {
-      k_lo = tol;
-      out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
-    } else {
-      out.reason = failure_reason(lo_band, required, side, other);
-      out.invalid = lo_band.verdict == Verdict::kInvalid;
-      if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
-      return out;
-    }
-  }
-
-  const ExactSearch search(params, side, ev, other, cap);
-  // The stiffness enters a block without the master (slave alone, or the decoupled slave):
-  // the human does not change it, one loop serves the band.
+  // Which block the stiffness enters, and whether the human changes it.
   bool human_free = !ev.human_matters();
+  std::size_t blocks = 0;
   {
     const ZohPlant plant = ev.model().master_plant(ev.human(0).impedance);
     for (const ModelBlock& b : ev.model().build(plant, 0.0, 0.0)) {
+      ++blocks;
       const int position = side == Side::kMaster ? b.master_position : b.slave_position;
       if (position >= 0 && !b.includes_master) human_free = true;
     }
   }
   const std::size_t humans = human_free ? 1 : ev.human_count();
-  std::vector<HumanOutcome> outcomes(humans);
-  std::atomic<double> best{std::numeric_limits<double>::infinity()};
-  std::atomic<std::size_t> next{0};
-  std::mutex error_mutex;
-  std::string error;
-  auto work = [&] {
-    for (std::size_t i = next++; i < humans; i = next++) {
-      try {
-        outcomes[i] = search.human_limit(i, k_lo, best.load());
-      } catch (const std::exception& e) {
-        const std::lock_guard<std::mutex> lock(error_mutex);
-        error = e.what();
-        return;
-      }
-      double seen = best.load();
-      while (outcomes[i].limit < seen && !best.compare_exchange_weak(seen, outcomes[i].limit)) {
-      }
-    }
-  };
-  const unsigned threads =
-      humans < 16 ? 1U : std::clamp(std::thread::hardware_concurrency(), 1U, 8U);
-  std::vector<std::thread> pool;
-  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool) t.join();
-  if (!error.empty()) {
+  const ExactSearch search(params, side, ev, other, cap);
+  std::vector<HumanCrossings> found(humans);
+  try {
+    parallel_for(humans, [&](std::size_t i) { found[i] = search.crossings(i); });
+  } catch (const std::exception& e) {
     // Not a rank-one loop (cannot happen with this model): the scan answers instead.
     StiffnessLimit scanned = max_stable_stiffness_scan(params, side, options);
     scanned.reason = (scanned.reason.empty() ? "" : scanned.reason + "; ") +
-                     "exact crossings unavailable (" + error + "), scanned instead";
+                     "exact crossings unavailable (" + e.what() + "), scanned instead";
     return scanned;
+  }
+
+  // The lower end: with one block, every human's count of modes outside at K = 0 (free with
+  // the crossings); otherwise, or when any count is not 0, the whole band's spectra at K = 0
+  // as the search always had it (a rigid-body mode at z = 1 exactly moves the lower end to the
+  // tolerance).
+  bool all_inside = blocks == 1;
+  for (const HumanCrossings& h : found) all_inside = all_inside && h.outside_at_zero == 0;
+  double k_lo = 0.0;
+  if (!all_inside) {
+    const BandResult lo_band = sweep(0.0);
+    if (!meets_requirement(lo_band, required)) {
+      const BandResult tiny =
+          lo_band.verdict == Verdict::kUncertain ? sweep(tol) : BandResult{Verdict::kUnstable};
+      if (lo_band.verdict == Verdict::kUncertain && meets_requirement(tiny, required)) {
+        k_lo = tol;
+        out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
+      } else {
+        out.reason = failure_reason(lo_band, required, side, other);
+        out.invalid = lo_band.verdict == Verdict::kInvalid;
+        if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
+        return out;
+      }
+    }
+  }
+
+  // Each human's first exit, its intervals confirmed by counting modes along the boundary.
+  std::vector<HumanOutcome> outcomes(humans);
+  std::atomic<double> best{std::numeric_limits<double>::infinity()};
+  parallel_for(humans, [&](std::size_t i) {
+    outcomes[i] = search.human_limit(i, found[i], k_lo, best.load(), false);
+    double seen = best.load();
+    while (outcomes[i].limit < seen && !best.compare_exchange_weak(seen, outcomes[i].limit)) {
+    }
+  });
+  for (std::size_t i = 0; i < humans; ++i) {
+    out.boundary_points += found[i].search.boundary_points;
   }
   std::size_t worst = 0;
   for (std::size_t i = 0; i < humans; ++i) {
@@ -270,6 +310,19 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
     out.crossings_found += o.crossings;
     out.fallbacks += o.fallback ? 1 : 0;
     if (o.limit < outcomes[worst].limit) worst = i;
+  }
+  // The limiting human's intervals again, each with one spectrum (its eigenvalues, not a
+  // count): where they disagree, the spectra decide and the disagreement is a fallback.
+  if (std::isfinite(outcomes[worst].limit) && found[worst].loop->order() <= kSpectrumOrderLimit) {
+    HumanOutcome confirmed = search.human_limit(worst, found[worst], k_lo,
+                                                std::numeric_limits<double>::infinity(), true);
+    out.evaluations += confirmed.spectra;
+    if (confirmed.limit != outcomes[worst].limit) {
+      ++out.fallbacks;
+      confirmed.fallback = true;
+    }
+    confirmed.limit = std::min(confirmed.limit, outcomes[worst].limit);
+    outcomes[worst] = confirmed;
   }
   const HumanOutcome& w = outcomes[worst];
   if (ev.human_matters()) out.worst_human = ev.human(worst);
@@ -282,7 +335,7 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
   // shows every mode inside the region by more than its bound.
   double answer = w.limit * (1.0 - kRoundDown);
   bool certain = false;
-  if (search.loop(worst).order() <= kSpectrumOrderLimit) {
+  if (found[worst].loop->order() <= kSpectrumOrderLimit) {
     for (int i = 0; i < 12 && answer > k_lo; ++i) {
       ++out.evaluations;
       const double k = answer;
