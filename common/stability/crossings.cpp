@@ -12,18 +12,24 @@ namespace {
 
 using Cd = std::complex<double>;
 constexpr double kPi = std::numbers::pi;
-// Neighbouring samples along the boundary differ by at most this much in the phase of every
-// tracked function (det(zI - A(0)), the numerator of G, or the loop's determinant at K): a
-// crossing is then a sign change of sin(arg G) between two samples, and a count of zeros is an
-// unwrapped phase.
-constexpr double kMaxPhaseStep = kPi / 2.0;
+// Neighbouring samples along the boundary differ by less than a quarter turn in the phase of
+// every tracked function (det(zI - A(0)) and the numerator of G, or the loop's determinant at
+// K): the phase of G then turns by less than pi between them, so a crossing is one sign change
+// of sin(arg G), and a count of zeros is an unwrapped phase.
 constexpr double kMinWidth = 1e-12;  // rad: the finest the sampler splits
 constexpr int kCoreCapacity = 16;    // the core is 6x6 at most in this model
 
-double step(Cd from, Cd to) { return std::arg(to * std::conj(from)); }
+// The principal argument in (-pi, pi], -0 read as +0 (so -1 - 0i is at +pi, as the axis
+// crossings below count it).
+double argument(Cd c) { return std::atan2(c.imag() + 0.0, c.real()); }
+
+// More than a quarter turn from `from` to `to` (scale-free: no square roots, no atan2).
+bool beyond_quarter_turn(Cd from, Cd to) {
+  return from.real() * to.real() + from.imag() * to.imag() < 0.0;
+}
 
 Cd unit(Cd c) {
-  const double a = std::abs(c);
+  const double a = std::sqrt(std::norm(c));
   return a > 0.0 && std::isfinite(a) ? c / a : Cd(1.0, 0.0);
 }
 
@@ -94,30 +100,55 @@ RankOneLoop::RankOneLoop(const ModelBlock& at_zero, const ModelBlock& at_one, in
     }
     source_ = core_index(at_zero.delay_source);
   }
+  neg_core_.resize(static_cast<std::size_t>(m_ * m_));
+  u_rm_.resize(static_cast<std::size_t>(m_));
+  link_rm_.resize(static_cast<std::size_t>(m_));
+  for (int a = 0; a < m_; ++a) {
+    for (int b = 0; b < m_; ++b) neg_core_[static_cast<std::size_t>(a * m_ + b)] = -core_(a, b);
+    u_rm_[static_cast<std::size_t>(a)] = u_(a);
+    link_rm_[static_cast<std::size_t>(a)] = link_(a);
+  }
 }
 
 namespace {
 
 // [M | u] eliminated with partial pivoting; returns the phase of det M and x_position of
-// M x = u. Fixed sizes (the core is 2 to 6 states) let the compiler unroll it.
+// M x = u. Fixed sizes (the core is 2 to 6 states) let the compiler unroll it, and the complex
+// arithmetic is written out on real and imaginary parts (std::complex's operators check for
+// infinities and NaNs on every product, which doubled the cost).
 template <int kM>
-bool solve(const Eigen::MatrixXd& core, const Eigen::VectorXd& u, const Eigen::VectorXd& link,
-           int source, int position, int m, Cd z, Cd zd, Cd& phase_out, Cd& g_out) {
+bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
+           const std::vector<double>& link, int source, int position, int m, Cd z, Cd zd,
+           Cd& phase_out, Cd& g_out) {
   constexpr int kCap = kM > 0 ? kM : kCoreCapacity;
   const int n = kM > 0 ? kM : m;
-  std::array<std::array<Cd, kCap + 1>, kCap> s;
+  std::array<std::array<double, kCap + 1>, kCap> re;
+  std::array<std::array<double, kCap + 1>, kCap> im;
   for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) s[i][j] = Cd(-core(i, j), 0.0);
-    s[i][i] += z;
-    s[i][n] = Cd(u(i), 0.0);
-    if (source >= 0) s[i][source] -= zd * link(i);
+    for (int j = 0; j < n; ++j) {
+      re[i][j] = neg_core[static_cast<std::size_t>(i * m + j)];
+      im[i][j] = 0.0;
+    }
+    re[i][i] += z.real();
+    im[i][i] += z.imag();
+    re[i][n] = u[static_cast<std::size_t>(i)];
+    im[i][n] = 0.0;
+    if (source >= 0) {
+      re[i][source] -= zd.real() * link[static_cast<std::size_t>(i)];
+      im[i][source] -= zd.imag() * link[static_cast<std::size_t>(i)];
+    }
   }
-  Cd phase(1.0, 0.0);
+  // The phase of det M as the product of the pivots, rescaled by powers of two (exact) so it
+  // neither overflows nor underflows; the pivots' inverses kept for the back substitution.
+  double ph_re = 1.0;
+  double ph_im = 0.0;
+  std::array<double, kCap> inv_re{};
+  std::array<double, kCap> inv_im{};
   for (int k = 0; k < n; ++k) {
     int piv = k;
-    double best = std::norm(s[k][k]);
+    double best = re[k][k] * re[k][k] + im[k][k] * im[k][k];
     for (int i = k + 1; i < n; ++i) {
-      const double v = std::norm(s[i][k]);
+      const double v = re[i][k] * re[i][k] + im[i][k] * im[i][k];
       if (v > best) {
         best = v;
         piv = i;
@@ -125,25 +156,51 @@ bool solve(const Eigen::MatrixXd& core, const Eigen::VectorXd& u, const Eigen::V
     }
     if (!(best > 0.0) || !std::isfinite(best)) return false;
     if (piv != k) {
-      std::swap(s[k], s[piv]);
-      phase = -phase;
+      std::swap(re[k], re[piv]);
+      std::swap(im[k], im[piv]);
+      ph_re = -ph_re;
+      ph_im = -ph_im;
     }
-    const Cd pivot = s[k][k];
-    phase *= pivot / std::sqrt(best);
-    const Cd inv = 1.0 / pivot;
+    const double pr = re[k][k];
+    const double pi = im[k][k];
+    const double nr = ph_re * pr - ph_im * pi;
+    ph_im = ph_re * pi + ph_im * pr;
+    ph_re = nr;
+    const double scale = std::abs(ph_re) + std::abs(ph_im);
+    if (scale > 0x1p+500 || scale < 0x1p-500) {
+      int e = 0;
+      (void)std::frexp(scale, &e);
+      ph_re = std::ldexp(ph_re, -e);
+      ph_im = std::ldexp(ph_im, -e);
+    }
+    const double r = 1.0 / best;
+    const double inv_r = pr * r;  // 1 / pivot
+    const double inv_i = -pi * r;
+    inv_re[k] = inv_r;
+    inv_im[k] = inv_i;
     for (int i = k + 1; i < n; ++i) {
-      const Cd f = s[i][k] * inv;
-      for (int j = k + 1; j <= n; ++j) s[i][j] -= f * s[k][j];
+      const double fr = re[i][k] * inv_r - im[i][k] * inv_i;
+      const double fi = re[i][k] * inv_i + im[i][k] * inv_r;
+      for (int j = k + 1; j <= n; ++j) {
+        re[i][j] -= fr * re[k][j] - fi * im[k][j];
+        im[i][j] -= fr * im[k][j] + fi * re[k][j];
+      }
     }
   }
-  std::array<Cd, kCap> x{};
+  std::array<double, kCap> xr{};
+  std::array<double, kCap> xi{};
   for (int i = n - 1; i >= 0; --i) {
-    Cd acc = s[i][n];
-    for (int j = i + 1; j < n; ++j) acc -= s[i][j] * x[j];
-    x[i] = acc / s[i][i];
+    double ar = re[i][n];
+    double ai = im[i][n];
+    for (int j = i + 1; j < n; ++j) {
+      ar -= re[i][j] * xr[j] - im[i][j] * xi[j];
+      ai -= re[i][j] * xi[j] + im[i][j] * xr[j];
+    }
+    xr[i] = ar * inv_re[i] - ai * inv_im[i];
+    xi[i] = ar * inv_im[i] + ai * inv_re[i];
   }
-  phase_out = unit(phase);
-  g_out = x[position];
+  phase_out = unit(Cd(ph_re, ph_im));
+  g_out = Cd(xr[position], xi[position]);
   return true;
 }
 
@@ -164,28 +221,28 @@ BoundaryPoint RankOneLoop::evaluate(double theta, const AdmissibleBoundary& boun
     bool ok = false;
     switch (m_) {
       case 2:
-        ok = solve<2>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
-                      p.g);
+        ok = solve<2>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
+                      p.p0_phase, p.g);
         break;
       case 3:
-        ok = solve<3>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
-                      p.g);
+        ok = solve<3>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
+                      p.p0_phase, p.g);
         break;
       case 4:
-        ok = solve<4>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
-                      p.g);
+        ok = solve<4>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
+                      p.p0_phase, p.g);
         break;
       case 5:
-        ok = solve<5>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
-                      p.g);
+        ok = solve<5>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
+                      p.p0_phase, p.g);
         break;
       case 6:
-        ok = solve<6>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
-                      p.g);
+        ok = solve<6>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
+                      p.p0_phase, p.g);
         break;
       default:
-        ok = solve<0>(core_, u_, link_, delay_ > 0 ? source_ : -1, position_, m_, z, zd, p.p0_phase,
-                      p.g);
+        ok = solve<0>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
+                      p.p0_phase, p.g);
         break;
     }
     if (ok) return p;
@@ -208,7 +265,7 @@ void refine(const BoundaryPoint& a, const BoundaryPoint& b, std::vector<Boundary
   const auto tb = track(b);
   bool split = false;
   for (std::size_t i = 0; i < ta.size(); ++i) {
-    split = split || std::abs(step(ta[i], tb[i])) > kMaxPhaseStep;
+    split = split || beyond_quarter_turn(ta[i], tb[i]);
   }
   if (split && b.theta - a.theta > kMinWidth && depth < 64) {
     const BoundaryPoint mid = eval(0.5 * (a.theta + b.theta));
@@ -221,13 +278,13 @@ void refine(const BoundaryPoint& a, const BoundaryPoint& b, std::vector<Boundary
 }
 
 double sin_arg(Cd g) {
-  const double a = std::abs(g);
+  const double a = std::sqrt(std::norm(g));
   return a > 0.0 && std::isfinite(a) ? g.imag() / a : 0.0;
 }
 
 // The phases a crossing search keeps resolved: det M and the numerator of G (-det M G).
 std::array<Cd, 2> crossing_phases(const BoundaryPoint& p) {
-  return {p.p0_phase, unit(-p.p0_phase * p.g)};
+  return {p.p0_phase, -p.p0_phase * p.g};  // only compared by beyond_quarter_turn
 }
 
 }  // namespace
@@ -369,19 +426,31 @@ int RankOneLoop::modes_outside(const CrossingSearch& search, double stiffness_N_
   // det(M - K u e^T) = det M (1 - K G).
   auto track = [&](const BoundaryPoint& p) {
     const Cd factor = 1.0 - stiffness_N_per_m * p.g;
-    if (std::abs(factor) == 0.0 || (p.singular && stiffness_N_per_m == 0.0)) on_boundary = true;
-    return std::array<Cd, 1>{unit(p.p0_phase * factor)};
+    if (std::norm(factor) == 0.0 || (p.singular && stiffness_N_per_m == 0.0)) on_boundary = true;
+    return std::array<Cd, 1>{p.p0_phase * factor};
   };
-  double turned = 0.0;
+  // The unwrapped phase: its principal values at the two ends, plus a turn for each crossing
+  // of the negative real axis (each step is under a quarter turn, so a change of sign of the
+  // imaginary part with a negative real part is such a crossing, and its sense is the sign's).
   std::vector<BoundaryPoint> fine;
+  long turns = 0;
+  Cd first{};
+  Cd last{};
   for (std::size_t j = 0; j + 1 < s.size(); ++j) {
     fine.clear();
     fine.push_back(s[j]);
     refine(s[j], s[j + 1], fine, unresolved, track, eval);
+    if (j == 0) first = track(fine.front())[0];
     for (std::size_t i = 0; i + 1 < fine.size(); ++i) {
-      turned += step(track(fine[i])[0], track(fine[i + 1])[0]);
+      const Cd a = track(fine[i])[0];
+      const Cd b = track(fine[i + 1])[0];
+      if (a.real() + b.real() < 0.0 && (a.imag() < 0.0) != (b.imag() < 0.0)) {
+        turns += a.imag() >= 0.0 ? 1 : -1;  // upper to lower half: counter-clockwise past pi
+      }
     }
+    last = track(fine.back())[0];
   }
+  const double turned = argument(last) - argument(first) + 2.0 * kPi * static_cast<double>(turns);
   if (unresolved || on_boundary) return -1;
   // Zeros inside = (arg change of z^d det(M - K u e^T) along the upper half) / pi.
   const double inside = static_cast<double>(delay_) + turned / kPi;

@@ -84,9 +84,12 @@ class RankOneLoop {
   [[nodiscard]] BoundaryPoint evaluate(double theta, const AdmissibleBoundary& boundary) const;
 
  private:
-  Eigen::MatrixXd core_{};  // A(0) without the delay chain
-  Eigen::VectorXd u_{};     // dA/dK restricted to the core
-  Eigen::VectorXd link_{};  // the column the last delayed state feeds (times z^-d)
+  Eigen::MatrixXd core_{};          // A(0) without the delay chain
+  Eigen::VectorXd u_{};             // dA/dK restricted to the core
+  Eigen::VectorXd link_{};          // the column the last delayed state feeds (times z^-d)
+  std::vector<double> neg_core_{};  // -A_core, row-major, and u and link as plain arrays
+  std::vector<double> u_rm_{};
+  std::vector<double> link_rm_{};
   int m_{0};
   int delay_{0};
   int source_{-1};  // core index of the delayed state's source (the master position)

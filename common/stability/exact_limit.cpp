@@ -219,6 +219,15 @@ std::string failure_reason(const BandResult& r, double required, Side side, doub
 
 }  // namespace
 
+NearestCrossings nearest_crossings(const StiffnessLimit& limit, double stiffness) {
+  NearestCrossings n;
+  const std::vector<double>& c = limit.crossings_N_per_m;
+  const auto it = std::lower_bound(c.begin(), c.end(), stiffness);
+  if (it != c.end()) n.above_N_per_m = *it;
+  if (it != c.begin()) n.below_N_per_m = *std::prev(it);
+  return n;
+}
+
 StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
                                     const SearchOptions& options) {
   const LoopEvaluator ev(params, side == Side::kMaster, side == Side::kSlave);
@@ -302,6 +311,15 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
   for (std::size_t i = 0; i < humans; ++i) {
     out.boundary_points += found[i].search.boundary_points;
   }
+  for (const HumanCrossings& h : found) {
+    for (const Crossing& c : h.search.crossings)
+      out.crossings_N_per_m.push_back(c.stiffness_N_per_m);
+  }
+  std::sort(out.crossings_N_per_m.begin(), out.crossings_N_per_m.end());
+  out.crossings_N_per_m.erase(
+      std::unique(out.crossings_N_per_m.begin(), out.crossings_N_per_m.end(),
+                  [](double a, double b) { return b - a <= 1e-12 * b; }),
+      out.crossings_N_per_m.end());
   std::size_t worst = 0;
   for (std::size_t i = 0; i < humans; ++i) {
     const HumanOutcome& o = outcomes[i];

@@ -4,6 +4,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "common/core/teleop_params.hpp"
 #include "common/stability/human_grid.hpp"
@@ -37,7 +38,17 @@ struct StiffnessLimit {
   int fallbacks{0};
   // The limit is a crossing where a mode only touches the boundary within the numerical error.
   bool uncertain{false};
+  // Every stiffness in (0, cap] at which some human's mode meets the boundary, ascending: the
+  // margins below and above a value in force (nearest_crossings).
+  std::vector<double> crossings_N_per_m{};
 };
+
+// The nearest crossings strictly below and at-or-above `stiffness` (empty where there is none).
+struct NearestCrossings {
+  std::optional<double> below_N_per_m{};
+  std::optional<double> above_N_per_m{};
+};
+[[nodiscard]] NearestCrossings nearest_crossings(const StiffnessLimit& limit, double stiffness);
 
 // Searches on the current worst human (geometric scan, then bisection), verifies the whole
 // band at the answer and at halvings below it, and repeats with whichever human fails there

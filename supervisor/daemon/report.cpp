@@ -31,6 +31,10 @@ v1::StabilityReport to_report(const Assessment& a, const ReportContext& context)
   r.set_slave_fixture_stiffness_n_per_m(a.inputs.slave_fixture_N_per_m);
   if (a.max_master_N_per_m) r.set_max_stable_master_stiffness_n_per_m(*a.max_master_N_per_m);
   if (a.max_slave_N_per_m) r.set_max_stable_slave_stiffness_n_per_m(*a.max_slave_N_per_m);
+  if (const auto c = a.slave_crossings.below_N_per_m) r.set_slave_crossing_below_n_per_m(*c);
+  if (const auto c = a.slave_crossings.above_N_per_m) r.set_slave_crossing_above_n_per_m(*c);
+  if (const auto c = a.master_crossings.below_N_per_m) r.set_master_crossing_below_n_per_m(*c);
+  if (const auto c = a.master_crossings.above_N_per_m) r.set_master_crossing_above_n_per_m(*c);
   if (const auto m = a.master_margin()) r.set_master_margin(*m);
   if (const auto m = a.slave_margin()) r.set_slave_margin(*m);
   r.set_round_trip_samples(a.inputs.round_trip_samples);

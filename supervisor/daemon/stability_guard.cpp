@@ -76,12 +76,15 @@ const Assessment& StabilityGuard::assess(const LiveInputs& in) {
   a.invalid_reason = r.invalid_reason;
   // The limits only where a fixture is used (skip what the scene does not need).
   if (in.master_fixture_N_per_m > 0.0) {
-    a.max_master_N_per_m =
-        stability::max_stable_stiffness(p, stability::Side::kMaster).max_stable_stiffness_N_per_m;
+    const stability::StiffnessLimit l =
+        stability::max_stable_stiffness(p, stability::Side::kMaster);
+    a.max_master_N_per_m = l.max_stable_stiffness_N_per_m;
+    a.master_crossings = stability::nearest_crossings(l, in.master_fixture_N_per_m);
   }
   if (in.slave_fixture_N_per_m > 0.0) {
-    a.max_slave_N_per_m =
-        stability::max_stable_stiffness(p, stability::Side::kSlave).max_stable_stiffness_N_per_m;
+    const stability::StiffnessLimit l = stability::max_stable_stiffness(p, stability::Side::kSlave);
+    a.max_slave_N_per_m = l.max_stable_stiffness_N_per_m;
+    a.slave_crossings = stability::nearest_crossings(l, in.slave_fixture_N_per_m);
   }
   cached_ = a;
   return *cached_;

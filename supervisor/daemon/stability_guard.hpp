@@ -10,6 +10,7 @@
 
 #include "common/core/teleop_params.hpp"
 #include "common/stability/human_grid.hpp"
+#include "common/stability/stiffness_search.hpp"
 #include "common/stability/verdict.hpp"
 #include "teleop/v1/telemetry.pb.h"
 
@@ -41,6 +42,10 @@ struct Assessment {
   std::optional<stability::HumanSample> worst_human{};
   std::optional<double> max_master_N_per_m{};
   std::optional<double> max_slave_N_per_m{};
+  // The nearest stiffness below and above the fixture in force at which some human's mode
+  // meets the admissible boundary (docs/stability-limits.md), per side.
+  stability::NearestCrossings master_crossings{};
+  stability::NearestCrossings slave_crossings{};
   // Why the verdict is invalid (a non-finite model), empty otherwise.
   std::string invalid_reason{};
   // True when the verdict is stable and every mode meets the required damping ratio.

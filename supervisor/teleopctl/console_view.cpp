@@ -104,12 +104,17 @@ std::string link_row(const v1::SupervisorStatus& s) {
 }
 
 std::string fixture_row(const char* side, double configured, bool has_max, double maximum,
-                        double margin, int cols) {
+                        double margin, int cols, std::optional<double> below,
+                        std::optional<double> above) {
   if (!(configured > 0.0)) return fmt::format("{:<6} fixture none", side);
   if (!has_max) return fmt::format("{:<6} fixture {:.0f} N/m (no finite limit)", side, configured);
   const std::string head =
       fmt::format("{:<6} fixture {:>6.0f} of {:>6.0f} N/m ", side, configured, maximum);
-  const std::string tail = fmt::format(" margin {:>4.0f}%", 100.0 * margin);
+  // The distances to the nearest crossings below and above (docs/stability-limits.md).
+  const std::string tail =
+      fmt::format(" margin {:>4.0f}% x{}/{}", 100.0 * margin,
+                  below ? fmt::format("-{:.0f}", configured - *below) : std::string("-"),
+                  above ? fmt::format("+{:.0f}", *above - configured) : std::string("+"));
   const int width = std::max(10, cols - static_cast<int>(head.size() + tail.size()));
   return head + margin_bar(configured, maximum, width) + tail;
 }
@@ -327,12 +332,17 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
           r.min_damping_ratio(), r.required_damping_ratio(), r.round_trip_samples(),
           r.sample_rate_hz()));
     }
-    lines.push_back(fixture_row("slave", r.slave_fixture_stiffness_n_per_m(),
-                                r.has_max_stable_slave_stiffness_n_per_m(),
-                                r.max_stable_slave_stiffness_n_per_m(), r.slave_margin(), cols));
-    lines.push_back(fixture_row("master", r.master_fixture_stiffness_n_per_m(),
-                                r.has_max_stable_master_stiffness_n_per_m(),
-                                r.max_stable_master_stiffness_n_per_m(), r.master_margin(), cols));
+    auto opt = [](bool has, double v) { return has ? std::optional<double>(v) : std::nullopt; };
+    lines.push_back(fixture_row(
+        "slave", r.slave_fixture_stiffness_n_per_m(), r.has_max_stable_slave_stiffness_n_per_m(),
+        r.max_stable_slave_stiffness_n_per_m(), r.slave_margin(), cols,
+        opt(r.has_slave_crossing_below_n_per_m(), r.slave_crossing_below_n_per_m()),
+        opt(r.has_slave_crossing_above_n_per_m(), r.slave_crossing_above_n_per_m())));
+    lines.push_back(fixture_row(
+        "master", r.master_fixture_stiffness_n_per_m(), r.has_max_stable_master_stiffness_n_per_m(),
+        r.max_stable_master_stiffness_n_per_m(), r.master_margin(), cols,
+        opt(r.has_master_crossing_below_n_per_m(), r.master_crossing_below_n_per_m()),
+        opt(r.has_master_crossing_above_n_per_m(), r.master_crossing_above_n_per_m())));
     auto osc = [](const v1::NodeSummary& n) {
       return fmt::format(
           "{:.3f}{}", n.oscillation_amplitude_m() * 1e3,

@@ -58,6 +58,7 @@ v1::SupervisorStatus engaged_status() {
   r->set_slave_fixture_stiffness_n_per_m(1000.0);
   r->set_max_stable_slave_stiffness_n_per_m(4000.0);
   r->set_slave_margin(0.75);
+  r->set_slave_crossing_above_n_per_m(4000.0);  // inside [0, limit] the limit is the next
   s.set_recording_file("/data/sessions/teleop-session-20261122-101500.mcap");
   s.set_recording_bytes(12'300'000);
   s.set_recorded_messages(4567);
@@ -139,6 +140,8 @@ TEST(ConsoleScreen, EightyByTwentyFourShowsNodesStabilityRecorderAndKeys) {
       << joined(lines);
   EXPECT_TRUE(has_line_starting(lines, "slave  fixture   1000 of   4000 N/m [")) << joined(lines);
   EXPECT_TRUE(contains(lines, "margin   75%")) << joined(lines);
+  // The nearest crossings: none below, the limit 3000 N/m above (issue 15).
+  EXPECT_TRUE(contains(lines, "margin   75% x-/+3000")) << joined(lines);
   EXPECT_TRUE(has_line_starting(lines, "master fixture none")) << joined(lines);
   EXPECT_TRUE(contains(lines, "teleop-session-20261122-101500.mcap  12.3 MB  4567 msgs  0 drops"))
       << joined(lines);
