@@ -351,19 +351,29 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
   // The crossing comes from the double-precision model, whose entries carry rounding (at high
   // rates phi - I holds few digits): step down from it until a spectrum with error bounds
   // shows every mode inside the region by more than its bound.
+  out.limit_crossing_N_per_m = w.limit;
   double answer = w.limit * (1.0 - kRoundDown);
   bool certain = false;
   if (found[worst].loop->order() <= kSpectrumOrderLimit) {
-    for (int i = 0; i < 12 && answer > k_lo; ++i) {
+    auto certain_at = [&](double k) {
       ++out.evaluations;
-      const double k = answer;
-      const Spectrum s = ev.spectrum(worst, side == Side::kMaster ? k : other,
-                                     side == Side::kSlave ? k : other, true);
-      if (certainly_admissible(s, required)) {
+      return certainly_admissible(ev.spectrum(worst, side == Side::kMaster ? k : other,
+                                              side == Side::kSlave ? k : other, true),
+                                  required);
+    };
+    double doubtful = w.limit;
+    for (int i = 0; i < 24 && answer > k_lo; ++i) {
+      if (certain_at(answer)) {
         certain = true;
         break;
       }
-      answer = w.limit * (1.0 - kRoundDown * std::pow(8.0, i + 1));
+      doubtful = answer;
+      answer = w.limit * (1.0 - kRoundDown * std::pow(4.0, i + 1));
+    }
+    // Closer: bisect between the last doubtful stiffness and the first certain one.
+    for (int i = 0; certain && i < 4 && doubtful > answer; ++i) {
+      const double mid = 0.5 * (answer + doubtful);
+      (certain_at(mid) ? answer : doubtful) = mid;
     }
   } else {
     certain = true;  // counted along the boundary: no per-mode bound to step by

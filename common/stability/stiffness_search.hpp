@@ -41,6 +41,9 @@ struct StiffnessLimit {
   // Every stiffness in (0, cap] at which some human's mode meets the boundary, ascending: the
   // margins below and above a value in force (nearest_crossings).
   std::vector<double> crossings_N_per_m{};
+  // The crossing the limit stands on; the limit is below it by the step that a spectrum with
+  // error bounds needed to show every mode inside (the model's rounding).
+  std::optional<double> limit_crossing_N_per_m{};
 };
 
 // The nearest crossings strictly below and at-or-above `stiffness` (empty where there is none).

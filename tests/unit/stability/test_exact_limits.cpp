@@ -184,9 +184,13 @@ TEST(ExactLimit, SeededRandomLoopsAgreeWithTheReferenceWithinOnePartInABillion) 
     }
     ASSERT_TRUE(l.max_stable_stiffness_N_per_m.has_value()) << what;
     const double k = *l.max_stable_stiffness_N_per_m;
-    // An exit of the reference's within 1e-9 above the engine's answer...
+    // Admissible at the answer, the crossing under it an exit of the reference's to 1e-9 ...
+    ASSERT_TRUE(l.limit_crossing_N_per_m.has_value());
+    const double crossing = *l.limit_crossing_N_per_m;
+    EXPECT_LE(k, crossing);
     EXPECT_TRUE(ref.admissible(k, 0.0)) << what << " at " << k;
-    EXPECT_FALSE(ref.admissible(k * (1 + 1e-9), 0.0)) << what << " at " << k;
+    EXPECT_TRUE(ref.admissible(crossing * (1 - 1e-9), 0.0)) << what << " at " << crossing;
+    EXPECT_FALSE(ref.admissible(crossing * (1 + 1e-9), 0.0)) << what << " at " << crossing;
     // ... and no exit below it (a scan finer than the old x1.2).
     const std::optional<double> scanned = ref.first_exit(1e-3, 1.05, k, 0.0);
     EXPECT_FALSE(scanned.has_value()) << what << ": the reference leaves at " << *scanned;
@@ -223,8 +227,11 @@ TEST(ExactLimit, ARequiredDampingRatioIsTheFirstCrossingOfTheConstantZetaSpiral)
     }
     ASSERT_TRUE(l.max_stable_stiffness_N_per_m.has_value()) << what;
     const double k = *l.max_stable_stiffness_N_per_m;
+    ASSERT_TRUE(l.limit_crossing_N_per_m.has_value());
+    const double crossing = *l.limit_crossing_N_per_m;
     EXPECT_TRUE(ref.admissible(k, zeta)) << what << " at " << k;
-    EXPECT_FALSE(ref.admissible(k * (1 + 1e-9), zeta)) << what << " at " << k;
+    EXPECT_TRUE(ref.admissible(crossing * (1 - 1e-9), zeta)) << what << " at " << crossing;
+    EXPECT_FALSE(ref.admissible(crossing * (1 + 1e-9), zeta)) << what << " at " << crossing;
     const std::optional<double> scanned = ref.first_exit(1e-3, 1.3, k, zeta);
     EXPECT_FALSE(scanned.has_value()) << what << ": the reference leaves at " << *scanned;
     ++compared;
