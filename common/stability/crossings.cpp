@@ -23,9 +23,30 @@ constexpr int kCoreCapacity = 16;    // the core is 6x6 at most in this model
 // crossings below count it).
 double argument(Cd c) { return std::atan2(c.imag() + 0.0, c.real()); }
 
-// More than a quarter turn from `from` to `to` (scale-free: no square roots, no atan2).
-bool beyond_quarter_turn(Cd from, Cd to) {
-  return from.real() * to.real() + from.imag() * to.imag() < 0.0;
+// More than a quarter turn from `from` to `to`, or more than an eighth with `strict` (scale-free:
+// no square roots, no atan2). Strict near the real axis: a mode pair close to z = 1 (a slow
+// mode at a high rate) turns the phase by about 3/2 pi within one interval, which would read
+// as a quarter turn back.
+bool too_far(Cd from, Cd to, bool strict) {
+  const double dot = from.real() * to.real() + from.imag() * to.imag();
+  if (dot < 0.0) return true;
+  constexpr double kCos2EighthTurn = 0.85355339059327373;  // cos^2(pi / 8)
+  return strict && dot * dot < kCos2EighthTurn * std::norm(from) * std::norm(to);
+}
+
+// The width of the first and last intervals of the initial grid, where too_far is strict.
+double end_zone(int order) { return kPi / (4 * order + 8); }
+
+// Uniform in theta (4 per mode and 8 more), and geometric below the first step down to 1/4096
+// of it: a slow mode at a high rate sits at theta = omega T, and several such modes together can
+// turn the phase by whole turns within the first uniform step, which no phase test sees.
+std::vector<double> initial_grid(int order) {
+  const int intervals = 4 * order + 8;
+  const double first = kPi / intervals;
+  std::vector<double> grid{0.0};
+  for (int k = 12; k >= 1; --k) grid.push_back(std::ldexp(first, -k));
+  for (int j = 1; j <= intervals; ++j) grid.push_back(j == intervals ? kPi : kPi * j / intervals);
+  return grid;
 }
 
 Cd unit(Cd c) {
@@ -112,33 +133,36 @@ RankOneLoop::RankOneLoop(const ModelBlock& at_zero, const ModelBlock& at_one, in
 
 namespace {
 
-// [M | u] eliminated with partial pivoting; returns the phase of det M and x_position of
-// M x = u. Fixed sizes (the core is 2 to 6 states) let the compiler unroll it, and the complex
-// arithmetic is written out on real and imaginary parts (std::complex's operators check for
-// infinities and NaNs on every product, which doubled the cost).
+// The bordered matrix B = [[M, u], [e_p^T, 0]] eliminated with partial pivoting, solving
+// B y = e_last. det B = P1, the numerator of G (det(M - K u e_p^T) = det M + K det B), and
+// y_last = det M / det B = P0 / P1 (Cramer): both stay finite where M is singular (a mode of
+// A(0) on the boundary), where G itself has a pole. Fixed sizes (the core is 2 to 6 states) let
+// the compiler unroll it, and the complex arithmetic is written out on real and imaginary
+// parts (std::complex's operators check for infinities and NaNs on every product, which
+// doubled the cost).
 template <int kM>
 bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
            const std::vector<double>& link, int source, int position, int m, Cd z, Cd zd,
-           Cd& phase_out, Cd& g_out) {
-  constexpr int kCap = kM > 0 ? kM : kCoreCapacity;
-  const int n = kM > 0 ? kM : m;
-  std::array<std::array<double, kCap + 1>, kCap> re;
-  std::array<std::array<double, kCap + 1>, kCap> im;
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j) {
-      re[i][j] = neg_core[static_cast<std::size_t>(i * m + j)];
-      im[i][j] = 0.0;
-    }
+           Cd& p1_phase_out, Cd& r_out) {
+  constexpr int kCap = (kM > 0 ? kM : kCoreCapacity) + 1;
+  const int n = (kM > 0 ? kM : m) + 1;  // bordered size
+  const int c = n;                      // the right-hand side's column
+  std::array<std::array<double, kCap + 1>, kCap> re{};
+  std::array<std::array<double, kCap + 1>, kCap> im{};
+  const int core = n - 1;
+  for (int i = 0; i < core; ++i) {
+    for (int j = 0; j < core; ++j) re[i][j] = neg_core[static_cast<std::size_t>(i * m + j)];
     re[i][i] += z.real();
     im[i][i] += z.imag();
-    re[i][n] = u[static_cast<std::size_t>(i)];
-    im[i][n] = 0.0;
+    re[i][core] = u[static_cast<std::size_t>(i)];
     if (source >= 0) {
       re[i][source] -= zd.real() * link[static_cast<std::size_t>(i)];
       im[i][source] -= zd.imag() * link[static_cast<std::size_t>(i)];
     }
   }
-  // The phase of det M as the product of the pivots, rescaled by powers of two (exact) so it
+  re[core][position] = 1.0;
+  re[core][c] = 1.0;  // e_last
+  // The phase of det B as the product of the pivots, rescaled by powers of two (exact) so it
   // neither overflows nor underflows; the pivots' inverses kept for the back substitution.
   double ph_re = 1.0;
   double ph_im = 0.0;
@@ -181,26 +205,18 @@ bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
     for (int i = k + 1; i < n; ++i) {
       const double fr = re[i][k] * inv_r - im[i][k] * inv_i;
       const double fi = re[i][k] * inv_i + im[i][k] * inv_r;
-      for (int j = k + 1; j <= n; ++j) {
+      if (fr == 0.0 && fi == 0.0) continue;
+      for (int j = k + 1; j <= c; ++j) {
         re[i][j] -= fr * re[k][j] - fi * im[k][j];
         im[i][j] -= fr * im[k][j] + fi * re[k][j];
       }
     }
   }
-  std::array<double, kCap> xr{};
-  std::array<double, kCap> xi{};
-  for (int i = n - 1; i >= 0; --i) {
-    double ar = re[i][n];
-    double ai = im[i][n];
-    for (int j = i + 1; j < n; ++j) {
-      ar -= re[i][j] * xr[j] - im[i][j] * xi[j];
-      ai -= re[i][j] * xi[j] + im[i][j] * xr[j];
-    }
-    xr[i] = ar * inv_re[i] - ai * inv_im[i];
-    xi[i] = ar * inv_im[i] + ai * inv_re[i];
-  }
-  phase_out = unit(Cd(ph_re, ph_im));
-  g_out = Cd(xr[position], xi[position]);
+  // Only the last unknown is wanted: the last row of the triangular system alone.
+  const double ar = re[n - 1][c];
+  const double ai = im[n - 1][c];
+  r_out = Cd(ar * inv_re[n - 1] - ai * inv_im[n - 1], ar * inv_im[n - 1] + ai * inv_re[n - 1]);
+  p1_phase_out = unit(Cd(ph_re, ph_im));
   return true;
 }
 
@@ -222,27 +238,27 @@ BoundaryPoint RankOneLoop::evaluate(double theta, const AdmissibleBoundary& boun
     switch (m_) {
       case 2:
         ok = solve<2>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p0_phase, p.g);
+                      p.p1_phase, p.r);
         break;
       case 3:
         ok = solve<3>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p0_phase, p.g);
+                      p.p1_phase, p.r);
         break;
       case 4:
         ok = solve<4>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p0_phase, p.g);
+                      p.p1_phase, p.r);
         break;
       case 5:
         ok = solve<5>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p0_phase, p.g);
+                      p.p1_phase, p.r);
         break;
       case 6:
         ok = solve<6>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p0_phase, p.g);
+                      p.p1_phase, p.r);
         break;
       default:
         ok = solve<0>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p0_phase, p.g);
+                      p.p1_phase, p.r);
         break;
     }
     if (ok) return p;
@@ -250,7 +266,7 @@ BoundaryPoint RankOneLoop::evaluate(double theta, const AdmissibleBoundary& boun
     p.singular = true;
     p.theta = t == 0.0 ? 1e-9 : (t == kPi ? kPi - 1e-9 : t + 1e-13);
   }
-  p.g = Cd(std::numeric_limits<double>::infinity(), 0.0);
+  p.r = Cd(std::numeric_limits<double>::quiet_NaN(), 0.0);
   return p;
 }
 
@@ -260,17 +276,16 @@ namespace {
 // kMaxPhaseStep between neighbours.
 template <class Track, class Eval>
 void refine(const BoundaryPoint& a, const BoundaryPoint& b, std::vector<BoundaryPoint>& out,
-            bool& unresolved, const Track& track, const Eval& eval, int depth = 0) {
+            bool& unresolved, const Track& track, const Eval& eval, double zone, int depth = 0) {
   const auto ta = track(a);
   const auto tb = track(b);
+  const bool strict = a.theta < zone * (1.0 + 1e-9) || b.theta > kPi - zone * (1.0 + 1e-9);
   bool split = false;
-  for (std::size_t i = 0; i < ta.size(); ++i) {
-    split = split || beyond_quarter_turn(ta[i], tb[i]);
-  }
+  for (std::size_t i = 0; i < ta.size(); ++i) split = split || too_far(ta[i], tb[i], strict);
   if (split && b.theta - a.theta > kMinWidth && depth < 64) {
     const BoundaryPoint mid = eval(0.5 * (a.theta + b.theta));
-    refine(a, mid, out, unresolved, track, eval, depth + 1);
-    refine(mid, b, out, unresolved, track, eval, depth + 1);
+    refine(a, mid, out, unresolved, track, eval, zone, depth + 1);
+    refine(mid, b, out, unresolved, track, eval, zone, depth + 1);
     return;
   }
   if (split) unresolved = true;
@@ -284,7 +299,7 @@ double sin_arg(Cd g) {
 
 // The phases a crossing search keeps resolved: det M and the numerator of G (-det M G).
 std::array<Cd, 2> crossing_phases(const BoundaryPoint& p) {
-  return {p.p0_phase, -p.p0_phase * p.g};  // only compared by beyond_quarter_turn
+  return {p.p1_phase, p.p1_phase * p.r};  // P1 and P0 = P1 r: compared by too_far
 }
 
 }  // namespace
@@ -298,28 +313,29 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
     ++out.boundary_points;
     return evaluate(theta, boundary);
   };
-  auto add = [&](double theta, Cd g, bool near_double) {
-    if (!(g.real() > 0.0) || !std::isfinite(g.real())) return;
-    const double k = 1.0 / g.real();
+  // A crossing at K = 1/G = -r, real and positive there.
+  auto add = [&](double theta, Cd r, bool near_double) {
+    const double k = -r.real();
+    if (!std::isfinite(k)) return;
     if (!(k > 1e-9) || k > max_stiffness_N_per_m) return;
     out.crossings.push_back({k, boundary.at(theta), near_double});
   };
   // The initial grid: the phase of det M turns by about pi per mode inside the region.
-  const int intervals = 4 * order() + 8;
   std::vector<BoundaryPoint>& s = out.samples;
-  s.reserve(static_cast<std::size_t>(intervals) * 2);
-  s.push_back(eval(0.0));
-  for (int j = 1; j <= intervals; ++j) {
-    const BoundaryPoint next = eval(j == intervals ? kPi : kPi * j / intervals);
+  const std::vector<double> grid = initial_grid(order());
+  s.reserve(grid.size() * 2);
+  s.push_back(eval(grid.front()));
+  for (std::size_t j = 1; j < grid.size(); ++j) {
+    const BoundaryPoint next = eval(grid[j]);
     const BoundaryPoint prev = s.back();
-    refine(prev, next, s, out.unresolved, crossing_phases, eval);
+    refine(prev, next, s, out.unresolved, crossing_phases, eval, end_zone(order()));
   }
   // The real-axis ends of the boundary (z = 1, z = -|z(pi)|), where G is real.
   for (const BoundaryPoint* end : {&s.front(), &s.back()}) {
-    if (!end->singular) add(end->theta, Cd(end->g.real(), 0.0), false);
+    if (!end->singular) add(end->theta, Cd(end->r.real(), 0.0), false);
   }
   // At the ends sin(arg G) is 0 identically: take the sign just inside.
-  auto h = [](const BoundaryPoint& x) { return sin_arg(x.g); };
+  auto h = [](const BoundaryPoint& x) { return sin_arg(x.r); };
   std::vector<BoundaryPoint> inner = s;
   if (inner.size() >= 2) {
     inner.front() = eval(inner[1].theta * 1e-6);
@@ -355,10 +371,10 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
     const BoundaryPoint& b = inner[j + 1];
     const double fa = h(a);
     const double fb = h(b);
-    if (!(a.g.real() > 0.0 || b.g.real() > 0.0)) continue;  // a root here has K < 0
+    if (!(a.r.real() < 0.0 || b.r.real() < 0.0)) continue;  // a root here has K < 0
     if ((fa > 0.0) != (fb > 0.0) && fa != 0.0 && fb != 0.0) {
       const BoundaryPoint c = root(a, b);
-      add(c.theta, c.g, false);
+      add(c.theta, c.r, false);
     }
   }
   // A mode that touches the boundary and returns: |sin(arg G)| has a local minimum at a
@@ -372,7 +388,7 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
     if (!(std::abs(f1) < std::abs(f0) && std::abs(f1) < std::abs(f2) && std::abs(f1) < 0.3)) {
       continue;
     }
-    if (!(inner[j].g.real() > 0.0)) continue;
+    if (!(inner[j].r.real() < 0.0)) continue;
     BoundaryPoint lo = inner[j - 1];
     BoundaryPoint hi = inner[j + 1];
     BoundaryPoint best = inner[j];
@@ -386,8 +402,8 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
           // Two crossings, one on each side of x.
           const BoundaryPoint first = root(inner[j - 1], *x);
           const BoundaryPoint second = root(*x, inner[j + 1]);
-          add(first.theta, first.g, false);
-          add(second.theta, second.g, false);
+          add(first.theta, first.r, false);
+          add(second.theta, second.r, false);
           split = true;
           break;
         }
@@ -404,7 +420,7 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
         x2 = eval(lo.theta + kGolden * (hi.theta - lo.theta));
       }
     }
-    if (!split && std::abs(h(best)) < 1e-9) add(best.theta, best.g, true);
+    if (!split && std::abs(h(best)) < 1e-9) add(best.theta, best.r, true);
   }
   std::sort(out.crossings.begin(), out.crossings.end(), [](const Crossing& x, const Crossing& y) {
     return x.stiffness_N_per_m < y.stiffness_N_per_m;
@@ -425,9 +441,10 @@ int RankOneLoop::modes_outside(const CrossingSearch& search, double stiffness_N_
   };
   // det(M - K u e^T) = det M (1 - K G).
   auto track = [&](const BoundaryPoint& p) {
-    const Cd factor = 1.0 - stiffness_N_per_m * p.g;
-    if (std::norm(factor) == 0.0 || (p.singular && stiffness_N_per_m == 0.0)) on_boundary = true;
-    return std::array<Cd, 1>{p.p0_phase * factor};
+    const Cd factor = p.r + stiffness_N_per_m;  // det(M - K u e^T) = P1 (r + K)
+    // A mode within 1e-9 N/m of stiffness of this point of the boundary: on it.
+    if (std::abs(factor) <= 1e-9 * (1.0 + stiffness_N_per_m)) on_boundary = true;
+    return std::array<Cd, 1>{p.p1_phase * factor};
   };
   // The unwrapped phase: its principal values at the two ends, plus a turn for each crossing
   // of the negative real axis (each step is under a quarter turn, so a change of sign of the
@@ -439,7 +456,7 @@ int RankOneLoop::modes_outside(const CrossingSearch& search, double stiffness_N_
   for (std::size_t j = 0; j + 1 < s.size(); ++j) {
     fine.clear();
     fine.push_back(s[j]);
-    refine(s[j], s[j + 1], fine, unresolved, track, eval);
+    refine(s[j], s[j + 1], fine, unresolved, track, eval, end_zone(order()));
     if (j == 0) first = track(fine.front())[0];
     for (std::size_t i = 0; i + 1 < fine.size(); ++i) {
       const Cd a = track(fine[i])[0];
@@ -465,10 +482,9 @@ int RankOneLoop::modes_outside(double stiffness_N_per_m, double required_damping
   CrossingSearch grid;
   grid.required_damping_ratio = required_damping_ratio;
   const AdmissibleBoundary boundary(required_damping_ratio);
-  const int intervals = 4 * order() + 8;
-  for (int j = 0; j <= intervals; ++j) {
+  for (const double theta : initial_grid(order())) {
     if (boundary_points != nullptr) ++*boundary_points;
-    grid.samples.push_back(evaluate(j == intervals ? kPi : kPi * j / intervals, boundary));
+    grid.samples.push_back(evaluate(theta, boundary));
   }
   return modes_outside(grid, stiffness_N_per_m, boundary_points);
 }

@@ -36,12 +36,14 @@ struct Crossing {
   bool near_double{false};
 };
 
-// One point of the boundary's upper half: det(zI - A(0)) (its phase) and G(z).
+// One point of the boundary's upper half. With P0 = det M(z) (the characteristic polynomial
+// with the delay chain's z^d left out) and P1 = det [[M, u], [e_p^T, 0]], the loop's is
+// det(M - K u e_p^T) = P0 + K P1 = P1 (r + K), r = P0 / P1 = -1 / G: a mode is at z for K = -r.
 struct BoundaryPoint {
   double theta{0.0};
-  std::complex<double> p0_phase{};  // det M(z) / |det M(z)| (the delay chain's z^d left out)
-  std::complex<double> g{};
-  bool singular{false};  // z is (numerically) a mode of A(0)
+  std::complex<double> p1_phase{};  // P1 / |P1|
+  std::complex<double> r{};
+  bool singular{false};  // P1 = 0 here (G = 0): evaluated a hair beside
 };
 
 struct CrossingSearch {
