@@ -1,6 +1,7 @@
 // Run time against error for the human-grid resolution: the maximum stable stiffness found
 // with points_per_axis = n on the default band, against a converged fine grid (finer in
-// force and in every parameter). Prints the table the README quotes.
+// force and in every parameter), by the exact method (crossings) and by the old scan (x1.2,
+// bisection, verified halvings). Prints the table the README quotes.
 //
 //   build/bench/bench_grid_error [--rates 500,1000]
 #include <fmt/format.h>
@@ -38,9 +39,10 @@ struct Timed {
   double ms{0.0};
 };
 
-Timed timed_limit(const TeleopParams& p, Side side) {
+Timed timed_limit(const TeleopParams& p, Side side, bool exact = true) {
   const auto t0 = std::chrono::steady_clock::now();
-  const StiffnessLimit l = max_stable_stiffness(p, side);
+  const StiffnessLimit l =
+      exact ? max_stable_stiffness(p, side) : max_stable_stiffness_scan(p, side);
   const auto t1 = std::chrono::steady_clock::now();
   return {l.max_stable_stiffness_N_per_m.value_or(std::nan("")),
           std::chrono::duration<double, std::milli>(t1 - t0).count()};
@@ -62,9 +64,9 @@ int main(int argc, char** argv) {
     }
   }
   fmt::print(
-      "| gains | rate (Hz) | side | points/axis | humans | search (ms) | K_max (N/m) | "
-      "error vs fine grid |\n");
-  fmt::print("|---|---|---|---|---|---|---|---|\n");
+      "| gains | rate (Hz) | side | points/axis | humans | exact (ms) | K_max (N/m) | "
+      "error vs fine grid | old scan (ms) | old scan's error |\n");
+  fmt::print("|---|---|---|---|---|---|---|---|---|---|\n");
   for (const bool fig6 : {false, true}) {
     const char* gains = fig6 ? "Fig. 6: 800/6, no filter" : "example: 600/2, 200 Hz";
     for (const double rate : rates) {
@@ -79,13 +81,16 @@ int main(int argc, char** argv) {
           TeleopParams p = paddles(rate, fig6);
           p.human.band.points_per_axis = n;
           const Timed t = timed_limit(p, side);
+          const Timed old = timed_limit(p, side, false);
           const std::size_t humans =
               p.human.band.force_levels_N.size() * static_cast<std::size_t>(n * n * n);
-          fmt::print("| {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:+.3f} % |\n", gains, rate,
-                     side_name, n, humans, t.ms, t.limit,
-                     100.0 * (t.limit - ref.limit) / ref.limit);
+          fmt::print(
+              "| {} | {:g} | {} | {} | {} | {:.2f} | {:.2f} | {:+.3f} % | {:.2f} | {:+.3f} % |\n",
+              gains, rate, side_name, n, humans, t.ms, t.limit,
+              100.0 * (t.limit - ref.limit) / ref.limit, old.ms,
+              100.0 * (old.limit - ref.limit) / ref.limit);
         }
-        fmt::print("| {} | {:g} | {} | 12 (19 levels) | {} | {:.1f} | {:.2f} | reference |\n",
+        fmt::print("| {} | {:g} | {} | 12 (19 levels) | {} | {:.1f} | {:.2f} | reference | | |\n",
                    gains, rate, side_name, 19 * 12 * 12 * 12, ref.ms, ref.limit);
       }
     }

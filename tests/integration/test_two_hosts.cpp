@@ -251,7 +251,7 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
             << "; one sample: " << *one_sample << " N/m\n";
   // The 3500 N/m wall is within the one-sample limit but not within this one: the guard
   // lowered it (an ACTION naming the grown round trip), and the slave runs with what it put
-  // in force, below the new limit (half of it), or half the wall where there is no limit.
+  // in force, below the new limit, or half the wall where there is no limit.
   if (analysed) {
     ASSERT_LT(*analysed, 3500.0);
   }
@@ -260,7 +260,13 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
     return t.active().change_id() > 0 && t.active().ramp_progress() == 1.0;
   })) << logs();
   const double in_force = st.last()->active().slave_fixture_stiffness_n_per_m();
-  EXPECT_LE(in_force, analysed ? 0.5 * *analysed + 1e-6 : 0.5 * 3500.0 + 1e-6);
+  // (Half the limit of the round trip the guard first saw grow; the model may have grown
+  // further since without the lowered wall leaving its limit.)
+  if (analysed) {
+    EXPECT_LT(in_force, *analysed);
+  } else {
+    EXPECT_LE(in_force, 0.5 * 3500.0 + 1e-6);
+  }
   std::cout << "the guard lowered the wall from 3500 to " << in_force << " N/m\n";
   EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
   EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
