@@ -156,11 +156,20 @@ bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
     im[i][i] += z.imag();
     re[i][core] = u[static_cast<std::size_t>(i)];
     if (source >= 0) {
-      re[i][source] -= zd.real() * link[static_cast<std::size_t>(i)];
-      im[i][source] -= zd.imag() * link[static_cast<std::size_t>(i)];
+      // Column `source` times z^d: (z^d (z e_s - A_core e_s) - link). r = P0 / P1 is unchanged
+      // (both determinants gain z^d), P1's phase gains d theta, and z^d never overflows where
+      // z^-d would (|z|^-d = e^{d kappa theta} passes 1e308 at d kappa pi > 709).
+      const double a = re[i][source];
+      const double b = im[i][source];
+      re[i][source] = zd.real() * a - zd.imag() * b - link[static_cast<std::size_t>(i)];
+      im[i][source] = zd.real() * b + zd.imag() * a;
     }
   }
   re[core][position] = 1.0;
+  if (position == source) {  // the scaled column crosses the border row too
+    re[core][position] = zd.real();
+    im[core][position] = zd.imag();
+  }
   re[core][c] = 1.0;  // e_last
   // The phase of det B as the product of the pivots, rescaled by powers of two (exact) so it
   // neither overflows nor underflows; the pivots' inverses kept for the back substitution.
@@ -228,11 +237,11 @@ BoundaryPoint RankOneLoop::evaluate(double theta, const AdmissibleBoundary& boun
   for (int attempt = 0; attempt < 2; ++attempt) {
     const double t = p.theta;
     const Cd z = boundary.at(t);
-    // z^-d = |z|^-d e^{-i d theta}, formed from theta (no complex power of a rounded z).
-    Cd zd(0.0, 0.0);
+    // z^d = |z|^d e^{i d theta}, formed from theta (no complex power of a rounded z).
+    Cd zd(1.0, 0.0);
     if (delay_ > 0) {
       const double d = static_cast<double>(delay_);
-      zd = std::polar(std::exp(d * boundary.decay_per_radian() * t), -d * t);
+      zd = std::polar(std::exp(-d * boundary.decay_per_radian() * t), d * t);
     }
     bool ok = false;
     switch (m_) {
@@ -311,7 +320,9 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
   out.required_damping_ratio = required_damping_ratio;
   auto eval = [&](double theta) {
     ++out.boundary_points;
-    return evaluate(theta, boundary);
+    BoundaryPoint p = evaluate(theta, boundary);
+    if (!std::isfinite(p.r.real()) || !std::isfinite(p.r.imag())) out.unresolved = true;
+    return p;
   };
   // A crossing at K = 1/G = -r, real and positive there.
   auto add = [&](double theta, Cd r, bool near_double) {
@@ -468,9 +479,10 @@ int RankOneLoop::modes_outside(const CrossingSearch& search, double stiffness_N_
     last = track(fine.back())[0];
   }
   const double turned = argument(last) - argument(first) + 2.0 * kPi * static_cast<double>(turns);
-  if (unresolved || on_boundary) return -1;
-  // Zeros inside = (arg change of z^d det(M - K u e^T) along the upper half) / pi.
-  const double inside = static_cast<double>(delay_) + turned / kPi;
+  if (unresolved || on_boundary || !std::isfinite(turned)) return -1;
+  // Zeros inside = (arg change of z^d det(M - K u e^T) along the upper half) / pi; the tracked
+  // P1 already carries the z^d (the scaled column).
+  const double inside = turned / kPi;
   const double rounded = std::round(inside);
   if (std::abs(inside - rounded) > 0.25) return -1;
   const int outside = order() - static_cast<int>(rounded);

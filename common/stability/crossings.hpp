@@ -37,11 +37,11 @@ struct Crossing {
 };
 
 // One point of the boundary's upper half. With P0 = det M(z) (the characteristic polynomial
-// with the delay chain's z^d left out) and P1 = det [[M, u], [e_p^T, 0]], the loop's is
+// is z^d P0) and P1 = det [[M, u], [e_p^T, 0]], the loop's is
 // det(M - K u e_p^T) = P0 + K P1 = P1 (r + K), r = P0 / P1 = -1 / G: a mode is at z for K = -r.
 struct BoundaryPoint {
   double theta{0.0};
-  std::complex<double> p1_phase{};  // P1 / |P1|
+  std::complex<double> p1_phase{};  // z^d P1 / |z^d P1|
   std::complex<double> r{};
   bool singular{false};  // P1 = 0 here (G = 0): evaluated a hair beside
 };

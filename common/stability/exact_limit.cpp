@@ -116,6 +116,12 @@ class ExactSearch {
       const double to = j < cs.size() ? cs[j].stiffness_N_per_m : cap_;
       // Inside the interval (just above the last crossing for the open end).
       const double probe = j < cs.size() ? 0.5 * (from + to) : std::min(cap_, from * 1.001 + 1e-9);
+      if (j > 0 && cs[j - 1].near_double && from <= best) {
+        // A mode touches the boundary here: at that stiffness it is on it.
+        o.limit = from;
+        o.uncertain = true;
+        return o;
+      }
       if (admissible(human, h, probe, by_spectrum, o)) continue;
       if (j == 0) {
         // No crossing found below a failing stiffness: one was missed. Find it by scan.
@@ -373,11 +379,22 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
   double answer = w.limit * (1.0 - kRoundDown);
   bool certain = false;
   if (found[worst].loop->order() <= kSpectrumOrderLimit) {
+    // Every human whose own crossing lies within the step of the worst one is checked: its
+    // true crossing could lie under the answer too.
+    std::vector<std::size_t> near;
+    for (std::size_t i = 0; i < humans; ++i) {
+      if (outcomes[i].limit <= w.limit * (1.0 + kMaxStepDown)) near.push_back(i);
+    }
     auto certain_at = [&](double k) {
-      ++out.evaluations;
-      return certainly_admissible(ev.spectrum(worst, side == Side::kMaster ? k : other,
+      for (const std::size_t i : near) {
+        ++out.evaluations;
+        if (!certainly_admissible(ev.spectrum(i, side == Side::kMaster ? k : other,
                                               side == Side::kSlave ? k : other, true),
-                                  required);
+                                  required)) {
+          return false;
+        }
+      }
+      return true;
     };
     // At most 1e-6 below the crossing (the model's rounding needed 3e-7 at 80 kHz): past that
     // the doubt is another mode within its bound of the boundary (a marginal one), not the
@@ -398,7 +415,9 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
     }
     if (!certain) answer = w.limit * (1.0 - kMaxStepDown);
   } else {
-    certain = true;  // counted along the boundary: no per-mode bound to step by
+    // Counted along the boundary: no per-mode bound to step by, so the full step.
+    answer = w.limit * (1.0 - kMaxStepDown);
+    certain = true;
   }
   out.max_stable_stiffness_N_per_m = std::max(k_lo, answer);
   out.uncertain = w.uncertain || !certain;

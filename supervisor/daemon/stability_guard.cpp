@@ -139,43 +139,52 @@ Decision StabilityGuard::check(const LiveInputs& current, const ChangeRequest& c
 // A change ramps from what is in force to what is asked (docs/stability-limits.md). A
 // fixture's ramp is checked exactly: the limit L is the first stiffness at which any mode
 // leaves the admissible region, so [0, L] is admissible and nothing above L is reachable
-// without crossing L. A ramp is accepted when it ends at or below L and either starts there
-// too or starts from a stiffness that is itself not admissible (a rescue: the ramp moves
-// monotonically into the region). A target above L, or a start in a stable window above L,
-// is refused even when the end point alone is stable. Gains enter the loop non-linearly: their
-// ramp is checked at kGainRampPoints - 1 evenly spaced intermediate points, fixtures ramping
-// with them.
+// without crossing L. A ramp is accepted when it ends at or below L and starts there too. A
+// target above L, or a start in a stable window above L, is refused even when the end point
+// alone is stable; so is a fixture ramp where no stiffness from 0 up is admissible with the
+// other settings (L does not exist). When what is in force is itself not admissible (the
+// guard's own lowering after the round trip grew), the ramp is a rescue into the region and
+// only its end point, checked before, counts. Gains, and two fixtures changing together,
+// enter the loop jointly: that ramp is analysed at kGainRampPoints - 1 evenly spaced
+// intermediate points, a resolution and not a proof.
 std::string StabilityGuard::path_refusal(const LiveInputs& from, const LiveInputs& to) {
   const double required = configured_.analysis.required_damping_ratio;
   auto admissible = [&](const LiveInputs& in) {
     const stability::AnalysisResult r = stability::analyze(params_for(in));
     return r.verdict == stability::Verdict::kStable && r.min_damping_ratio >= required;
   };
+  if (!admissible(from)) return {};
+  int fixtures_changing = 0;
   for (const bool slave : {false, true}) {
     const double a = slave ? from.slave_fixture_N_per_m : from.master_fixture_N_per_m;
     const double b = slave ? to.slave_fixture_N_per_m : to.master_fixture_N_per_m;
-    if (a == b || !(std::max(a, b) > 0.0)) continue;
+    if (a == b) continue;
+    ++fixtures_changing;
+    if (!(std::max(a, b) > 0.0)) continue;
     const stability::StiffnessLimit l = stability::max_stable_stiffness(
         params_for(to), slave ? stability::Side::kSlave : stability::Side::kMaster);
-    if (!l.max_stable_stiffness_N_per_m) continue;  // the end point's own verdict decides
-    const double limit = *l.max_stable_stiffness_N_per_m;
     const char* name = slave ? "slave" : "master";
+    if (!l.max_stable_stiffness_N_per_m) {
+      if (l.reason.rfind("meets the requirement for every stiffness", 0) == 0) continue;
+      return fmt::format(
+          "the {} fixture's ramp from {:g} to {:g} N/m cannot be shown admissible: {}", name, a, b,
+          l.reason);
+    }
+    const double limit = *l.max_stable_stiffness_N_per_m;
     if (b > limit) {
       return fmt::format(
           "the {} fixture's ramp from {:g} to {:g} N/m passes {:g} N/m, where a mode leaves the "
           "admissible region (every stiffness up to there is admissible)",
           name, a, b, limit);
     }
-    LiveInputs start = to;
-    (slave ? start.slave_fixture_N_per_m : start.master_fixture_N_per_m) = a;
-    if (a > limit && admissible(start)) {
+    if (a > limit) {
       return fmt::format(
           "the {} fixture's ramp from {:g} to {:g} N/m passes {:g} N/m: {:g} N/m lies in a stable "
           "window above an unstable one",
           name, a, b, limit, a);
     }
   }
-  if (from.gains == to.gains) return {};
+  if (from.gains == to.gains && fixtures_changing < 2) return {};
   for (int i = 1; i < kGainRampPoints; ++i) {
     const double f = static_cast<double>(i) / kGainRampPoints;
     auto mix = [f](double x, double y) { return x + f * (y - x); };
@@ -190,10 +199,9 @@ std::string StabilityGuard::path_refusal(const LiveInputs& from, const LiveInput
     mid.master_fixture_N_per_m = mix(from.master_fixture_N_per_m, to.master_fixture_N_per_m);
     mid.slave_fixture_N_per_m = mix(from.slave_fixture_N_per_m, to.slave_fixture_N_per_m);
     const stability::AnalysisResult r = stability::analyze(params_for(mid));
-    if (!(r.verdict == stability::Verdict::kStable &&
-          r.min_damping_ratio >= configured_.analysis.required_damping_ratio)) {
+    if (!(r.verdict == stability::Verdict::kStable && r.min_damping_ratio >= required)) {
       return fmt::format(
-          "the ramp to the new gains is {} {:.0f} % of the way (minimum damping ratio {:.4f})",
+          "the ramp to the new values is {} {:.0f} % of the way (minimum damping ratio {:.4f})",
           stability::to_string(r.verdict), 100.0 * f, r.min_damping_ratio);
     }
   }

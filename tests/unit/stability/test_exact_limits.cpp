@@ -254,10 +254,39 @@ TEST(ExactLimit, TwoHundredSamplesOfRoundTripAreExactToo) {
   ASSERT_TRUE(ref.admissible(1e-6, 0.0)) << "the delayed loop is stable without a wall";
   ASSERT_TRUE(l.max_stable_stiffness_N_per_m.has_value()) << l.reason;
   const double k = *l.max_stable_stiffness_N_per_m;
-  // Degree 206: the reference's roots take about a second each, so three points.
+  // Degree 206: the reference's roots take about a second each, so three points. Past 24
+  // states the limit is 1e-6 under its crossing (no per-mode error bound to step by).
+  ASSERT_TRUE(l.limit_crossing_N_per_m.has_value());
+  const double crossing = *l.limit_crossing_N_per_m;
+  EXPECT_NEAR(k, crossing * (1 - 1e-6), 1e-9 * crossing);
   EXPECT_TRUE(ref.admissible(k, 0.0));
-  EXPECT_FALSE(ref.admissible(k * (1 + 1e-9), 0.0));
+  EXPECT_FALSE(ref.admissible(crossing * (1 + 1e-9), 0.0));
   EXPECT_TRUE(ref.admissible(0.5 * k, 0.0));
+}
+
+// A round trip of 400 samples with a required damping ratio of 0.5: |z|^-d along the spiral
+// reaches e^725 at theta = pi, past the largest double. The delay's column is scaled by z^d
+// instead, so the analysis stays finite: such a long loop cannot give every mode a damping ratio
+// of 0.5 (its delay modes lie near |z| = 1 all around the circle), and it says so, as the
+// spectrum of the whole 406-state loop at zero stiffness does.
+TEST(ExactLimit, ALongRoundTripWithARequiredDampingRatioStaysFinite) {
+  TeleopParams p = window_example();
+  p.sample_rate_hz = 1000.0;
+  p.scaling = {1.0, 1.0};
+  p.master_device = {0.04, 2.0};
+  p.slave_device = {0.036, 2.0};
+  p.velocity_cutoff_hz = 0.0;
+  p.human.fixed = {0.01, 3.0, 300.0};
+  p.gains = Gains{20, 20, 1, 1, 0, 0, 0};
+  p.round_trip_delay_samples = 400;
+  p.analysis.required_damping_ratio = 0.5;
+  const StiffnessLimit l = max_stable_stiffness(p, Side::kSlave);
+  EXPECT_FALSE(l.max_stable_stiffness_N_per_m.has_value());
+  EXPECT_NE(l.reason.find("below the required 0.5"), std::string::npos) << l.reason;
+  const LoopEvaluator ev(p, false, true);
+  const Spectrum s = ev.spectrum(0, 0.0, 0.0, false);
+  EXPECT_LT(s.min_damping_ratio, 0.5);
+  EXPECT_TRUE(std::isfinite(s.min_damping_ratio));
 }
 
 }  // namespace
