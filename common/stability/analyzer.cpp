@@ -1,7 +1,11 @@
 #include "common/stability/analyzer.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <limits>
+#include <string>
+#include <thread>
+#include <vector>
 
 namespace teleop::stability {
 
@@ -38,45 +42,70 @@ BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const
   bool any_invalid = false;
   // Blocks without the master do not depend on the human: their spectrum is computed once.
   std::optional<Spectrum> human_free;
-  for (std::size_t i = 0; i < humans_.size(); ++i) {
-    const std::vector<ModelBlock> blocks = model_.build(master_plants_[i], kmvf, ksvf);
-    std::vector<Spectrum> parts;
-    for (const ModelBlock& b : blocks) {
-      if (!b.includes_master) {
-        if (!human_free) {
-          human_free = compute_spectrum(b.a, model_.period_s(), b.structural_zeros, false);
-        }
-        parts.push_back(*human_free);
-      } else {
-        parts.push_back(compute_spectrum(b.a, model_.period_s(), b.structural_zeros, false));
-      }
+  for (const ModelBlock& b : model_.build(master_plants_[0], kmvf, ksvf)) {
+    if (!b.includes_master) {
+      human_free = compute_spectrum(b.a, model_.period_s(), b.structural_zeros, false);
     }
-    double zeta = 2.0;
-    double radius = 0.0;
-    bool fails = false;
-    for (const Spectrum& s : parts) {
-      zeta = std::min(zeta, s.min_damping_ratio);
-      radius = std::max(radius, s.spectral_radius);
-      if (s.verdict == Verdict::kInvalid && !any_invalid) {
-        any_invalid = true;
-        result.invalid_reason = s.invalid_reason;
-        result.failing_index = i;
+  }
+  // Each human's spectra on the machine's cores (humans are independent), then the worst
+  // case in human order, so the result does not depend on the threads.
+  struct PerHuman {
+    double zeta{2.0};
+    double radius{0.0};
+    bool invalid{false};
+    bool unstable{false};
+    bool uncertain{false};
+    bool fails{false};
+    std::string invalid_reason{};
+  };
+  std::vector<PerHuman> per(humans_.size());
+  auto one = [&](std::size_t i) {
+    PerHuman& h = per[i];
+    for (const ModelBlock& b : model_.build(master_plants_[i], kmvf, ksvf)) {
+      const Spectrum s = b.includes_master || !human_free
+                             ? compute_spectrum(b.a, model_.period_s(), b.structural_zeros, false)
+                             : *human_free;
+      h.zeta = std::min(h.zeta, s.min_damping_ratio);
+      h.radius = std::max(h.radius, s.spectral_radius);
+      if (s.verdict == Verdict::kInvalid && !h.invalid) {
+        h.invalid = true;
+        h.invalid_reason = s.invalid_reason;
       }
-      any_unstable = any_unstable || s.verdict == Verdict::kUnstable;
-      any_uncertain = any_uncertain || s.verdict == Verdict::kUncertain;
-      fails = fails || s.verdict != Verdict::kStable;
+      h.unstable = h.unstable || s.verdict == Verdict::kUnstable;
+      h.uncertain = h.uncertain || s.verdict == Verdict::kUncertain;
+      h.fails = h.fails || s.verdict != Verdict::kStable;
     }
-    fails = fails || !(zeta >= required);
-    if (zeta < result.min_damping_ratio) {
-      result.min_damping_ratio = zeta;
+    h.fails = h.fails || !(h.zeta >= required);
+  };
+  const std::size_t n = humans_.size();
+  const unsigned threads = n < 64 ? 1U : std::clamp(std::thread::hardware_concurrency(), 1U, 8U);
+  std::atomic<std::size_t> next{0};
+  auto work = [&] {
+    for (std::size_t i = next++; i < n; i = next++) one(i);
+  };
+  std::vector<std::thread> pool;
+  for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
+  work();
+  for (std::thread& t : pool) t.join();
+  for (std::size_t i = 0; i < n; ++i) {
+    const PerHuman& h = per[i];
+    if (h.invalid && !any_invalid) {
+      any_invalid = true;
+      result.invalid_reason = h.invalid_reason;
+      result.failing_index = i;
+    }
+    any_unstable = any_unstable || h.unstable;
+    any_uncertain = any_uncertain || h.uncertain;
+    if (h.zeta < result.min_damping_ratio) {
+      result.min_damping_ratio = h.zeta;
       result.worst_index = i;
     }
-    if (radius > result.spectral_radius) {
-      result.spectral_radius = radius;
+    if (h.radius > result.spectral_radius) {
+      result.spectral_radius = h.radius;
       result.radius_index = i;
     }
-    if (fails && zeta < failing_zeta) {
-      failing_zeta = zeta;
+    if (h.fails && h.zeta < failing_zeta) {
+      failing_zeta = h.zeta;
       result.failing_index = i;
     }
   }

@@ -147,8 +147,9 @@ bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
   constexpr int kCap = (kM > 0 ? kM : kCoreCapacity) + 1;
   const int n = (kM > 0 ? kM : m) + 1;  // bordered size
   const int c = n;                      // the right-hand side's column
-  std::array<std::array<double, kCap + 1>, kCap> re{};
-  std::array<std::array<double, kCap + 1>, kCap> im{};
+  // Plain arrays: indexed by int without conversions, rows swapped element by element.
+  double re[kCap][kCap + 1] = {};
+  double im[kCap][kCap + 1] = {};
   const int core = n - 1;
   for (int i = 0; i < core; ++i) {
     for (int j = 0; j < core; ++j) re[i][j] = neg_core[static_cast<std::size_t>(i * m + j)];
@@ -175,8 +176,8 @@ bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
   // neither overflows nor underflows; the pivots' inverses kept for the back substitution.
   double ph_re = 1.0;
   double ph_im = 0.0;
-  std::array<double, kCap> inv_re{};
-  std::array<double, kCap> inv_im{};
+  double inv_re[kCap] = {};
+  double inv_im[kCap] = {};
   for (int k = 0; k < n; ++k) {
     int piv = k;
     double best = re[k][k] * re[k][k] + im[k][k] * im[k][k];
@@ -189,8 +190,10 @@ bool solve(const std::vector<double>& neg_core, const std::vector<double>& u,
     }
     if (!(best > 0.0) || !std::isfinite(best)) return false;
     if (piv != k) {
-      std::swap(re[k], re[piv]);
-      std::swap(im[k], im[piv]);
+      for (int j = 0; j <= c; ++j) {
+        std::swap(re[k][j], re[piv][j]);
+        std::swap(im[k][j], im[piv][j]);
+      }
       ph_re = -ph_re;
       ph_im = -ph_im;
     }
