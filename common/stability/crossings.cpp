@@ -246,33 +246,14 @@ BoundaryPoint RankOneLoop::evaluate(double theta, const AdmissibleBoundary& boun
       const double d = static_cast<double>(delay_);
       zd = std::polar(std::exp(-d * boundary.decay_per_radian() * t), d * t);
     }
-    bool ok = false;
-    switch (m_) {
-      case 2:
-        ok = solve<2>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p1_phase, p.r);
-        break;
-      case 3:
-        ok = solve<3>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p1_phase, p.r);
-        break;
-      case 4:
-        ok = solve<4>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p1_phase, p.r);
-        break;
-      case 5:
-        ok = solve<5>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p1_phase, p.r);
-        break;
-      case 6:
-        ok = solve<6>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p1_phase, p.r);
-        break;
-      default:
-        ok = solve<0>(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z, zd,
-                      p.p1_phase, p.r);
-        break;
-    }
+    // The fixed-size elimination for the core's size (2 to 6 states), else the general one.
+    using Solver = bool (*)(const std::vector<double>&, const std::vector<double>&,
+                            const std::vector<double>&, int, int, int, Cd, Cd, Cd&, Cd&);
+    static constexpr Solver kSolvers[] = {solve<0>, solve<0>, solve<2>, solve<3>,
+                                          solve<4>, solve<5>, solve<6>};
+    const Solver solver = m_ >= 2 && m_ <= 6 ? kSolvers[m_] : solve<0>;
+    const bool ok = solver(neg_core_, u_rm_, link_rm_, delay_ > 0 ? source_ : -1, position_, m_, z,
+                           zd, p.p1_phase, p.r);
     if (ok) return p;
     // A mode of A(0) exactly here: look a hair beside it.
     p.singular = true;

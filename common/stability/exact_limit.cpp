@@ -213,29 +213,6 @@ bool certainly_admissible(const Spectrum& s, double required) {
   return true;
 }
 
-std::string failure_reason(const BandResult& r, double required, Side side, double other) {
-  const char* name = side == Side::kMaster ? "master" : "slave";
-  const std::string with_other =
-      other == 0.0 ? std::string("no fixture at all")
-                   : fmt::format("no {} fixture (the {} fixture at {:g} N/m as configured)", name,
-                                 side == Side::kMaster ? "slave" : "master", other);
-  if (r.verdict == Verdict::kInvalid) {
-    return fmt::format("invalid model with {}: {}", with_other, r.invalid_reason);
-  }
-  if (r.verdict == Verdict::kUnstable) {
-    return fmt::format("unstable with {} (minimum damping ratio {:.4g})", with_other,
-                       r.min_damping_ratio);
-  }
-  if (r.verdict == Verdict::kUncertain) {
-    return fmt::format(
-        "marginal with {}: an eigenvalue lies on the unit circle within the numerical error",
-        with_other);
-  }
-  return fmt::format(
-      "with {} the minimum damping ratio {:.4g} is already below the required {:.4g}", with_other,
-      r.min_damping_ratio, required);
-}
-
 }  // namespace
 
 NearestCrossings nearest_crossings(const StiffnessLimit& limit, double stiffness) {
@@ -257,14 +234,7 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
   const double cap = options.max_stiffness_N_per_m;
   StiffnessLimit out;
   out.other_fixture_N_per_m = other;
-  if (side == Side::kMaster) {
-    out.passivity_limit_N_per_m = master_passivity_limit(params);
-    if (!out.passivity_limit_N_per_m) {
-      out.passivity_reason =
-          "not passive at any stiffness: the master's virtual damping |beta kdm + kvm| is not "
-          "below its device damping b";
-    }
-  }
+  fill_passivity(out, params, side);
   auto sweep = [&](double k) {
     ++out.band_verifications;
     return ev.sweep(side == Side::kMaster ? k : other, side == Side::kSlave ? k : other, required);
@@ -310,7 +280,7 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
         k_lo = tol;
         out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
       } else {
-        out.reason = failure_reason(lo_band, required, side, other);
+        out.reason = lower_end_failure(lo_band, required, side, other);
         out.invalid = lo_band.verdict == Verdict::kInvalid;
         if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
         return out;

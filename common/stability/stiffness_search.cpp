@@ -29,7 +29,9 @@ struct Searcher {
   BandResult band(double k) const { return ev.sweep(kmvf(k), ksvf(k), required); }
 };
 
-std::string describe_failure(const BandResult& r, double required, Side side, double other) {
+}  // namespace
+
+std::string lower_end_failure(const BandResult& r, double required, Side side, double other) {
   const char* name = side == Side::kMaster ? "master" : "slave";
   const std::string with_other =
       other == 0.0 ? std::string("no fixture at all")
@@ -53,7 +55,15 @@ std::string describe_failure(const BandResult& r, double required, Side side, do
       r.min_damping_ratio, required);
 }
 
-}  // namespace
+void fill_passivity(StiffnessLimit& out, const TeleopParams& params, Side side) {
+  if (side != Side::kMaster) return;
+  out.passivity_limit_N_per_m = master_passivity_limit(params);
+  if (!out.passivity_limit_N_per_m) {
+    out.passivity_reason =
+        "not passive at any stiffness: the master's virtual damping |beta kdm + kvm| is not "
+        "below its device damping b";
+  }
+}
 
 std::optional<double> master_passivity_limit(const TeleopParams& p) {
   const double beta = p.scaling.force;
@@ -73,14 +83,7 @@ StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
   Searcher s{ev, side, other, required};
   StiffnessLimit out;
   out.other_fixture_N_per_m = other;
-  if (side == Side::kMaster) {
-    out.passivity_limit_N_per_m = master_passivity_limit(params);
-    if (!out.passivity_limit_N_per_m) {
-      out.passivity_reason =
-          "not passive at any stiffness: the master's virtual damping |beta kdm + kvm| is not "
-          "below its device damping b";
-    }
-  }
+  fill_passivity(out, params, side);
   auto finish = [&]() -> StiffnessLimit& {
     out.evaluations = s.evaluations;
     return out;
@@ -102,7 +105,7 @@ StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
       out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
       lo_band = tiny;
     } else {
-      out.reason = describe_failure(lo_band, required, side, other);
+      out.reason = lower_end_failure(lo_band, required, side, other);
       out.invalid = lo_band.verdict == Verdict::kInvalid;
       if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
       return finish();

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/core/teleop_params.hpp"
+#include "common/stability/analyzer.hpp"
 #include "common/stability/human_grid.hpp"
 
 namespace teleop::stability {
@@ -56,6 +57,12 @@ struct NearestCrossings {
 // Searches on the current worst human (geometric scan, then bisection), verifies the whole
 // band at the answer and at halvings below it, and repeats with whichever human fails there
 // until the band agrees. The other side's fixture is held at its configured value.
+// Shared by both searches: why a configuration has no limit at its lower end, and the
+// master's passivity bound filled in (master side only).
+[[nodiscard]] std::string lower_end_failure(const BandResult& at_zero, double required, Side side,
+                                            double other_N_per_m);
+void fill_passivity(StiffnessLimit& out, const TeleopParams& params, Side side);
+
 [[nodiscard]] StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
                                                        const SearchOptions& options = {});
 

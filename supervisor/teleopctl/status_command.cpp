@@ -203,30 +203,27 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
         "trip {} samples (measured {:.3f} ms)\n",
         r.verdict(), r.min_damping_ratio(), r.required_damping_ratio(), r.round_trip_samples(),
         static_cast<double>(r.measured_round_trip_ns()) * 1e-6);
-    auto crossings = [](bool has_below, double below, bool has_above, double above,
-                        double in_force) {
-      return fmt::format(
-          "; nearest crossings {} below, {} above",
+    // One fixture's line: in force, its limit and margin, the nearest crossings about it.
+    auto fixture = [&](const char* side, double in_force, double limit, double margin,
+                       bool has_below, double below, bool has_above, double above) {
+      out << fmt::format(
+          "  {} fixture {:.0f} N/m of {:.0f} N/m (margin {:.0f} %; nearest crossings {} below, {} "
+          "above)\n",
+          side, in_force, limit, 100.0 * margin,
           has_below ? fmt::format("{:.1f} N/m", in_force - below) : std::string("none"),
           has_above ? fmt::format("{:.1f} N/m", above - in_force) : std::string("none"));
     };
     if (r.has_max_stable_slave_stiffness_n_per_m()) {
-      out << fmt::format(
-          "  slave fixture {:.0f} N/m of {:.0f} N/m (margin {:.0f} %{})\n",
-          r.slave_fixture_stiffness_n_per_m(), r.max_stable_slave_stiffness_n_per_m(),
-          100.0 * r.slave_margin(),
-          crossings(r.has_slave_crossing_below_n_per_m(), r.slave_crossing_below_n_per_m(),
-                    r.has_slave_crossing_above_n_per_m(), r.slave_crossing_above_n_per_m(),
-                    r.slave_fixture_stiffness_n_per_m()));
+      fixture("slave", r.slave_fixture_stiffness_n_per_m(), r.max_stable_slave_stiffness_n_per_m(),
+              r.slave_margin(), r.has_slave_crossing_below_n_per_m(),
+              r.slave_crossing_below_n_per_m(), r.has_slave_crossing_above_n_per_m(),
+              r.slave_crossing_above_n_per_m());
     }
     if (r.has_max_stable_master_stiffness_n_per_m()) {
-      out << fmt::format(
-          "  master fixture {:.0f} N/m of {:.0f} N/m (margin {:.0f} %{})\n",
-          r.master_fixture_stiffness_n_per_m(), r.max_stable_master_stiffness_n_per_m(),
-          100.0 * r.master_margin(),
-          crossings(r.has_master_crossing_below_n_per_m(), r.master_crossing_below_n_per_m(),
-                    r.has_master_crossing_above_n_per_m(), r.master_crossing_above_n_per_m(),
-                    r.master_fixture_stiffness_n_per_m()));
+      fixture("master", r.master_fixture_stiffness_n_per_m(),
+              r.max_stable_master_stiffness_n_per_m(), r.master_margin(),
+              r.has_master_crossing_below_n_per_m(), r.master_crossing_below_n_per_m(),
+              r.has_master_crossing_above_n_per_m(), r.master_crossing_above_n_per_m());
     }
     out << "nodes: master " << (s.master_alive() ? "alive" : "SILENT") << ", slave "
         << (s.slave_alive() ? "alive" : "SILENT") << "\n";

@@ -239,7 +239,8 @@ TEST(ExactLimit, ARequiredDampingRatioIsTheFirstCrossingOfTheConstantZetaSpiral)
   EXPECT_GT(compared, 5);
 }
 
-TEST(ExactLimit, TwoHundredSamplesOfRoundTripAreExactToo) {
+// Soft paddles at 1 kHz, stable however long the round trip (the gains 20 N/m, 1 Ns/m).
+TeleopParams slow_delayed_loop(int round_trip_samples) {
   TeleopParams p = window_example();
   p.sample_rate_hz = 1000.0;
   p.scaling = {1.0, 1.0};
@@ -247,8 +248,13 @@ TEST(ExactLimit, TwoHundredSamplesOfRoundTripAreExactToo) {
   p.slave_device = {0.036, 2.0};
   p.velocity_cutoff_hz = 0.0;
   p.human.fixed = {0.01, 3.0, 300.0};
-  p.gains = Gains{20, 20, 1, 1, 0, 0, 0};  // soft enough to be stable 0.2 s apart
-  p.round_trip_delay_samples = 200;
+  p.gains = Gains{20, 20, 1, 1, 0, 0, 0};
+  p.round_trip_delay_samples = round_trip_samples;
+  return p;
+}
+
+TEST(ExactLimit, TwoHundredSamplesOfRoundTripAreExactToo) {
+  const TeleopParams p = slow_delayed_loop(200);
   const StiffnessLimit l = max_stable_stiffness(p, Side::kSlave);
   const Reference ref(p, Side::kSlave);
   ASSERT_TRUE(ref.admissible(1e-6, 0.0)) << "the delayed loop is stable without a wall";
@@ -270,15 +276,7 @@ TEST(ExactLimit, TwoHundredSamplesOfRoundTripAreExactToo) {
 // of 0.5 (its delay modes lie near |z| = 1 all around the circle), and it says so, as the
 // spectrum of the whole 406-state loop at zero stiffness does.
 TEST(ExactLimit, ALongRoundTripWithARequiredDampingRatioStaysFinite) {
-  TeleopParams p = window_example();
-  p.sample_rate_hz = 1000.0;
-  p.scaling = {1.0, 1.0};
-  p.master_device = {0.04, 2.0};
-  p.slave_device = {0.036, 2.0};
-  p.velocity_cutoff_hz = 0.0;
-  p.human.fixed = {0.01, 3.0, 300.0};
-  p.gains = Gains{20, 20, 1, 1, 0, 0, 0};
-  p.round_trip_delay_samples = 400;
+  TeleopParams p = slow_delayed_loop(400);
   p.analysis.required_damping_ratio = 0.5;
   const StiffnessLimit l = max_stable_stiffness(p, Side::kSlave);
   EXPECT_FALSE(l.max_stable_stiffness_N_per_m.has_value());
