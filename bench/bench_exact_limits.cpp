@@ -223,7 +223,6 @@ int main(int argc, char** argv) {
       "step below the crossing {:.2g} (relative); mean run time exact {:.2f} ms, scan {:.2f} ms "
       "(two cases at a time)\n",
       n, seed, compared, none, defects, beyond_1e9, scan_above, step_down, engine_ms / n,
-      scan_ms / n)); mean run time exact {:.2f} ms, scan {:.2f} ms (two cases at a time)\n",
-      n, seed, compared, none, defects, scan_above, step_down, engine_ms / n, scan_ms / n);
+      scan_ms / n);
   return defects == 0 ? 0 : 1;
 }
