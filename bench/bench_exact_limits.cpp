@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
       seed = std::strtoull(argv[++i], nullptr, 10);
     if (std::strcmp(argv[i], "--case") == 0 && i + 1 < argc) only = std::atoi(argv[++i]);
   }
-  std::vector<Outcome> out(static_cast<std::size_t>(cases));
+  std::vector<Outcome> out(static_cast<std::size_t>(std::max(cases, only + 1)));
   std::atomic<int> next{only >= 0 ? only : 0};
   const int end = only >= 0 ? only + 1 : cases;
   std::mutex print;
