@@ -15,6 +15,7 @@
 #include "common/device/usb_device.hpp"
 #include "common/runtime/node_app.hpp"
 #include "common/runtime/service_notify.hpp"
+#include "common/stability/analyzer.hpp"
 
 namespace teleop::runtime {
 namespace {
@@ -74,6 +75,8 @@ void apply_configuration_check(const config::LoadedConfig& loaded, config::NodeS
 
 int run_node_main(transport::Role role, int argc, char** argv) {
   const char* name = role == transport::Role::kMaster ? "teleop-master" : "teleop-slave";
+  // The start-up analysis shares the machine with the peer's loop: one core.
+  stability::set_analysis_threads(1);
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string config_path;
   std::vector<std::string> overrides;

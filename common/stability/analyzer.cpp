@@ -33,6 +33,18 @@ Spectrum LoopEvaluator::spectrum(std::size_t human, double kmvf, double ksvf,
   return parts.size() == 1 ? parts.front() : merge(parts);
 }
 
+namespace {
+std::atomic<unsigned> g_analysis_threads{0};  // 0: every core
+}  // namespace
+
+void set_analysis_threads(unsigned threads) { g_analysis_threads = threads; }
+
+unsigned analysis_threads(std::size_t work_items, std::size_t minimum_for_parallel) {
+  if (work_items < minimum_for_parallel) return 1U;
+  const unsigned set = g_analysis_threads.load();
+  return std::clamp(set == 0 ? std::thread::hardware_concurrency() : set, 1U, 8U);
+}
+
 BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const {
   BandResult result;
   result.min_damping_ratio = 2.0;
@@ -78,7 +90,7 @@ BandResult LoopEvaluator::sweep(double kmvf, double ksvf, double required) const
     h.fails = h.fails || !(h.zeta >= required);
   };
   const std::size_t n = humans_.size();
-  const unsigned threads = n < 64 ? 1U : std::clamp(std::thread::hardware_concurrency(), 1U, 8U);
+  const unsigned threads = analysis_threads(n, 64);
   std::atomic<std::size_t> next{0};
   auto work = [&] {
     for (std::size_t i = next++; i < n; i = next++) one(i);

@@ -64,6 +64,12 @@ struct AnalysisResult {
   std::string invalid_reason{};
 };
 
+// How many threads a band sweep or a stiffness limit may use (default: every core, at most 8).
+// A process that shares the machine with real-time loops (the supervisor, the nodes) sets 1:
+// bursts on every core delayed the nodes' link threads and grew the round trip it measures.
+void set_analysis_threads(unsigned threads);
+[[nodiscard]] unsigned analysis_threads(std::size_t work_items, std::size_t minimum_for_parallel);
+
 // The configured teleoperator as it stands (its own fixture stiffnesses).
 [[nodiscard]] AnalysisResult analyze(const TeleopParams& params);
 

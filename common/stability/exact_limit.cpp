@@ -187,7 +187,7 @@ void parallel_for(std::size_t n, const F& f) {
       }
     }
   };
-  const unsigned threads = n < 16 ? 1U : std::clamp(std::thread::hardware_concurrency(), 1U, 8U);
+  const unsigned threads = analysis_threads(n, 16);
   std::vector<std::thread> pool;
   for (unsigned t = 1; t < threads; ++t) pool.emplace_back(work);
   work();

@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "common/runtime/service_notify.hpp"
+#include "common/stability/analyzer.hpp"
 #include "supervisor/daemon/session_recorder.hpp"
 #include "supervisor/daemon/supervisor_app.hpp"
 
@@ -49,6 +50,8 @@ void start_recording(const std::filesystem::path& dir, SupervisorOptions& option
 }  // namespace
 
 int run_supervisor_main(int argc, char** argv) {
+  // The analyses share the machine with the nodes' loops: one core (stability/analyzer.hpp).
+  stability::set_analysis_threads(1);
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string config_path;
   std::vector<std::string> overrides;

