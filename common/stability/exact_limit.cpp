@@ -272,20 +272,10 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
   for (const HumanCrossings& h : found) all_inside = all_inside && h.outside_at_zero == 0;
   double k_lo = 0.0;
   if (!all_inside) {
-    const BandResult lo_band = sweep(0.0);
-    if (!meets_requirement(lo_band, required)) {
-      const BandResult tiny =
-          lo_band.verdict == Verdict::kUncertain ? sweep(tol) : BandResult{Verdict::kUnstable};
-      if (lo_band.verdict == Verdict::kUncertain && meets_requirement(tiny, required)) {
-        k_lo = tol;
-        out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
-      } else {
-        out.reason = lower_end_failure(lo_band, required, side, other);
-        out.invalid = lo_band.verdict == Verdict::kInvalid;
-        if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
-        return out;
-      }
-    }
+    const std::optional<LowerEnd> lower =
+        find_lower_end(sweep, ev, required, tol, side, other, out);
+    if (!lower) return out;
+    k_lo = lower->stiffness_N_per_m;
   }
 
   // Each human's first exit, its intervals confirmed by counting modes along the boundary.

@@ -55,6 +55,26 @@ std::string lower_end_failure(const BandResult& r, double required, Side side, d
       r.min_damping_ratio, required);
 }
 
+std::optional<LowerEnd> find_lower_end(const std::function<BandResult(double)>& band,
+                                       const LoopEvaluator& ev, double required, double tol,
+                                       Side side, double other, StiffnessLimit& out) {
+  // With no restoring force at all (no human spring, no coupling) a free mass has a
+  // rigid-body mode at z = 1: marginal at K = 0 exactly, so start just above it.
+  const BandResult at_zero = band(0.0);
+  if (meets_requirement(at_zero, required)) return LowerEnd{0.0, at_zero};
+  if (at_zero.verdict == Verdict::kUncertain) {
+    const BandResult tiny = band(tol);
+    if (meets_requirement(tiny, required)) {
+      out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
+      return LowerEnd{tol, tiny};
+    }
+  }
+  out.reason = lower_end_failure(at_zero, required, side, other);
+  out.invalid = at_zero.verdict == Verdict::kInvalid;
+  if (ev.human_matters()) out.worst_human = ev.human(at_zero.failing_index.value_or(0));
+  return std::nullopt;
+}
+
 void fill_passivity(StiffnessLimit& out, const TeleopParams& params, Side side) {
   if (side != Side::kMaster) return;
   out.passivity_limit_N_per_m = master_passivity_limit(params);
@@ -93,24 +113,10 @@ StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
     return s.band(k);
   };
 
-  // The lower end. With no restoring force at all (no human spring, no coupling) a free mass
-  // has a rigid-body mode at z = 1: marginal at K = 0 exactly, so start just above it.
-  BandResult lo_band = band(0.0);
-  double k_lo = 0.0;
-  if (!meets_requirement(lo_band, required)) {
-    const BandResult tiny =
-        lo_band.verdict == Verdict::kUncertain ? band(tol) : BandResult{Verdict::kUnstable};
-    if (lo_band.verdict == Verdict::kUncertain && meets_requirement(tiny, required)) {
-      k_lo = tol;
-      out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
-      lo_band = tiny;
-    } else {
-      out.reason = lower_end_failure(lo_band, required, side, other);
-      out.invalid = lo_band.verdict == Verdict::kInvalid;
-      if (ev.human_matters()) out.worst_human = ev.human(lo_band.failing_index.value_or(0));
-      return finish();
-    }
-  }
+  const std::optional<LowerEnd> lower = find_lower_end(band, ev, required, tol, side, other, out);
+  if (!lower) return finish();
+  const double k_lo = lower->stiffness_N_per_m;
+  const BandResult& lo_band = lower->band;
 
   std::size_t human = lo_band.worst_index;
   double ceiling = options.max_stiffness_N_per_m;  // known to fail for `human` (or the cap)

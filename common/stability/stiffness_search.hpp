@@ -2,6 +2,7 @@
 // the required damping ratio for every human of the model, to the configured tolerance.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -62,6 +63,18 @@ struct NearestCrossings {
 [[nodiscard]] std::string lower_end_failure(const BandResult& at_zero, double required, Side side,
                                             double other_N_per_m);
 void fill_passivity(StiffnessLimit& out, const TeleopParams& params, Side side);
+
+// The lower end both searches start from: the whole band at K = 0, or at the tolerance when a
+// rigid-body mode sits at z = 1 exactly at K = 0 (then `out.reason` says the limit is over
+// (0, K]). Empty when there is no limit; `out` then holds the reason, `invalid` and the human.
+struct LowerEnd {
+  double stiffness_N_per_m{0.0};
+  BandResult band{};
+};
+[[nodiscard]] std::optional<LowerEnd> find_lower_end(const std::function<BandResult(double)>& band,
+                                                     const LoopEvaluator& ev, double required,
+                                                     double tolerance, Side side,
+                                                     double other_N_per_m, StiffnessLimit& out);
 
 [[nodiscard]] StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
                                                        const SearchOptions& options = {});

@@ -12,6 +12,7 @@
 #include "campaign.hpp"
 #include "common/stability/crossings.hpp"
 #include "common/stability/stiffness_search.hpp"
+#include "tests/unit/stability/window_example.hpp"
 
 namespace teleop::stability {
 namespace {
@@ -19,19 +20,7 @@ namespace {
 using campaign::RefLoop;
 using campaign::Rng;
 
-// The example: 500 Hz, a fixed human; unstable between about 1325 and 1357 N/m.
-TeleopParams window_example() {
-  TeleopParams p;
-  p.sample_rate_hz = 500.0;
-  p.master_device = {0.04, 0.41};
-  p.slave_device = {0.036, 0.49};
-  p.gains = Gains{1018.83, 141.622, 2.71629, 0.68129, 0, 0, 0};
-  p.scaling = {1.0, 2.0};
-  p.velocity_cutoff_hz = 100.0;
-  p.human.kind = HumanKind::kFixed;
-  p.human.fixed = {0.01, 3.179, 300.0};
-  return p;
-}
+using test::window_example;
 
 struct Reference {
   TeleopParams p;
@@ -118,6 +107,9 @@ TEST(ExactLimit, TheNearestCrossingsAboutAValueInsideTheWindowBoundIt) {
   EXPECT_FALSE(inside.below_N_per_m.has_value());
   ASSERT_TRUE(inside.above_N_per_m.has_value());
   EXPECT_NEAR(*inside.above_N_per_m, *l.max_stable_stiffness_N_per_m, 1e-8 * 1325.0);
+  // ... and it is the reference's first exit to 1e-9.
+  EXPECT_TRUE(ref.admissible(*inside.above_N_per_m * (1 - 1e-9), 0.0));
+  EXPECT_FALSE(ref.admissible(*inside.above_N_per_m * (1 + 1e-9), 0.0));
 }
 
 TEST(ExactLimit, EveryCrossingOfTheWindowExampleAgreesWithTheReference) {

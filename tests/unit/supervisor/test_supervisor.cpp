@@ -15,6 +15,7 @@
 #include "common/scene/lockstep.hpp"
 #include "supervisor/daemon/monitors.hpp"
 #include "supervisor/daemon/stability_guard.hpp"
+#include "tests/unit/stability/window_example.hpp"
 
 namespace teleop::supervisor {
 namespace {
@@ -84,15 +85,7 @@ TEST(StabilityGuard, AGrowingRoundTripLowersTheLimitAndTheFallbackStaysBelowIt) 
 // 2000 N/m (each point by the 50-digit reference in test_exact_limits.cpp): the ramp from 1000
 // to 2000 crosses the window and is refused although its end alone is stable.
 TEST(StabilityGuard, AFixtureRampThroughAnUnstableWindowIsRefusedThoughItsEndIsStable) {
-  TeleopParams p;
-  p.sample_rate_hz = 500.0;
-  p.master_device = {0.04, 0.41};
-  p.slave_device = {0.036, 0.49};
-  p.gains = Gains{1018.83, 141.622, 2.71629, 0.68129, 0, 0, 0};
-  p.scaling = {1.0, 2.0};
-  p.velocity_cutoff_hz = 100.0;
-  p.human.kind = HumanKind::kFixed;
-  p.human.fixed = {0.01, 3.179, 300.0};
+  TeleopParams p = test::window_example();
   p.slave_fixture = {1000.0, 0.0};
   StabilityGuard guard(p);
   const LiveInputs now = guard.configured_inputs();
