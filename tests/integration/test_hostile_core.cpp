@@ -191,7 +191,38 @@ INSTANTIATE_TEST_SUITE_P(Stalls, HostileCoreStall,
 
 // ---- Finding 10 ------------------------------------------------------------------------------
 
-TEST(HostileCoreClutch, UnclutchAfterTheOperatorMovedTheMasterPullsNothingBack) {
+// One clutch, move, unclutch run. A host stall past the peer timeout (this VM's hypervisor
+// stops both cores for 30 ms and more at times) rightly sends the pair safe in the middle of
+// it; the run then says so, with the telemetry's evidence (a wake-up latency or peer age past
+// the timeout), and is tried again rather than read as a law that pulled.
+struct ClutchRun {
+  bool host_stalled{false};
+  std::string stall_evidence;
+  double slave_worst_m{0.0};
+  double force_worst_N{0.0};
+  double master_worst_m{0.0};
+  std::int64_t worst_at_ns{0};
+  std::vector<std::string> left_engaged;  // modes and reasons of cycles that were not ENGAGED
+};
+
+// The largest wake-up latency or peer age in `c` past `from_ns`, with what it was.
+std::pair<std::int64_t, std::string> worst_stall(const std::vector<v1::CycleRecord>& c,
+                                                 std::int64_t from_ns, const char* node) {
+  std::pair<std::int64_t, std::string> worst{0, ""};
+  for (const v1::CycleRecord& r : c) {
+    if (r.sample_time_ns() < from_ns) continue;
+    for (const auto& [v, what] :
+         {std::pair<std::int64_t, const char*>{r.wakeup_latency_ns(), "wake-up latency"},
+          {r.peer_age_ns(), "peer age"}}) {
+      if (v > worst.first) {
+        worst = {v, std::string(node) + " " + what + " " + std::to_string(v / 1'000'000) + " ms"};
+      }
+    }
+  }
+  return worst;
+}
+
+void clutch_run(ClutchRun& out) {
   TempDir dir;
   Ports ports;
   // The operator's push: 0 until 1.0 s of scene time (from engagement), then up to 1 N over
@@ -232,37 +263,62 @@ TEST(HostileCoreClutch, UnclutchAfterTheOperatorMovedTheMasterPullsNothingBack) 
   const auto m = mt.cycles();
   const auto s = st.cycles();
   // While clutched the slave held where it was.
-  double slave_worst = 0.0;
   for (const v1::CycleRecord& r : s) {
     if (r.sample_time_ns() > clutched[clutch_at].sample_time_ns()) {
-      slave_worst = std::max(slave_worst, std::abs(r.position_m() - slave_at_clutch));
+      out.slave_worst_m = std::max(out.slave_worst_m, std::abs(r.position_m() - slave_at_clutch));
     }
   }
+  for (const v1::CycleRecord& r : m) {
+    if (r.sample_time_ns() <= unclutch_t) continue;
+    if (std::abs(r.command_n()) > out.force_worst_N) {
+      out.worst_at_ns = r.sample_time_ns() - unclutch_t;
+    }
+    out.force_worst_N = std::max(out.force_worst_N, std::abs(r.command_n()));
+    out.master_worst_m = std::max(out.master_worst_m, std::abs(r.position_m() - d));
+    if (r.mode() != v1::ENGAGED && out.left_engaged.size() < 3) {
+      out.left_engaged.push_back(v1::NodeMode_Name(r.mode()) + " at " +
+                                 std::to_string((r.sample_time_ns() - unclutch_t) / 1'000'000) +
+                                 " ms");
+    }
+  }
+  // The peer timeout is 30 ms: a wake-up or a peer state that late is the host's, not the law's.
+  const std::int64_t from = clutched[clutch_at].sample_time_ns();
+  const auto wm = worst_stall(m, from, "master");
+  const auto ws = worst_stall(s, from, "slave");
+  const auto& w = wm.first >= ws.first ? wm : ws;
+  out.host_stalled = w.first > 25'000'000;
+  out.stall_evidence = w.second;
+}
+
+TEST(HostileCoreClutch, UnclutchAfterTheOperatorMovedTheMasterPullsNothingBack) {
+  ClutchRun run;
+  for (int attempt = 1; attempt <= 3; ++attempt) {
+    run = ClutchRun{};
+    ASSERT_NO_FATAL_FAILURE(clutch_run(run));
+    if (!run.host_stalled) break;
+    std::cout << "attempt " << attempt << ": the host stalled (" << run.stall_evidence
+              << "); tried again\n";
+  }
+  ASSERT_FALSE(run.host_stalled) << "three runs in a row with a host stall: " << run.stall_evidence;
+  constexpr double d = 1.0 / 70.0;
+  std::cout << "clutch: master moved " << d * 1e3
+            << " mm; after unclutch |F| <= " << run.force_worst_N << " N at "
+            << static_cast<double>(run.worst_at_ns) / 1e6 << " ms, master within "
+            << run.master_worst_m * 1e3 << " mm of where it was, slave within "
+            << run.slave_worst_m * 1e3 << " mm\n";
+  // Engaged throughout after the unclutch.
+  EXPECT_TRUE(run.left_engaged.empty()) << run.left_engaged.front();
   // After unclutch, hand arithmetic: offset = x_m - x_hold absorbed, so x_r - x_s = x_hold -
   // x_s ~ 0 and v ~ 0: the law's force is only its damping terms, ~0 N (not the pull back
   // K_pm d = 8.6 N, limited by the actuator, the issue's -1.45 N on the hand).
-  double force_worst = 0.0;
-  std::int64_t worst_at_ns = 0;
-  double master_worst = 0.0;
-  for (const v1::CycleRecord& r : m) {
-    if (r.sample_time_ns() <= unclutch_t) continue;
-    if (std::abs(r.command_n()) > force_worst) worst_at_ns = r.sample_time_ns() - unclutch_t;
-    force_worst = std::max(force_worst, std::abs(r.command_n()));
-    master_worst = std::max(master_worst, std::abs(r.position_m() - d));
-    ASSERT_EQ(r.mode(), v1::ENGAGED);
-  }
-  std::cout << "clutch: master moved " << d * 1e3 << " mm; after unclutch |F| <= " << force_worst
-            << " N at " << static_cast<double>(worst_at_ns) / 1e6 << " ms"
-            << " N, master within " << master_worst * 1e3 << " mm of where it was, slave within "
-            << slave_worst * 1e3 << " mm\n";
   // The old law's pull back is K_pm d = 8.6 N (actuator-limited) and dragged the slave 15.6 mm;
   // what remains is the coupling error the slave's drift while clutched leaves (K_pm * 0.3 mm =
   // 0.18 N measured) plus damping transients of the two loops: both bounded at a tenth of the
   // pull back (force below 0.1 K_pm d, slave within 0.1 d), an order of magnitude.
   constexpr double kpm = 600.0;
-  EXPECT_LT(slave_worst, 0.1 * d);
-  EXPECT_LT(force_worst, 0.1 * kpm * d);
-  EXPECT_LT(master_worst, 1e-3);
+  EXPECT_LT(run.slave_worst_m, 0.1 * d);
+  EXPECT_LT(run.force_worst_N, 0.1 * kpm * d);
+  EXPECT_LT(run.master_worst_m, 1e-3);
 }
 
 // ---- Finding 11 ------------------------------------------------------------------------------
