@@ -22,12 +22,12 @@
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
-#include "supervisor/daemon/configuration_check.hpp"
-#include "supervisor/daemon/monitors.hpp"
-#include "supervisor/daemon/parameter_audit.hpp"
-#include "supervisor/daemon/report.hpp"
-#include "supervisor/daemon/stability_guard.hpp"
-#include "supervisor/daemon/status_builder.hpp"
+#include "supervisor/core/configuration_check.hpp"
+#include "supervisor/core/monitors.hpp"
+#include "supervisor/core/parameter_audit.hpp"
+#include "supervisor/core/report.hpp"
+#include "supervisor/core/stability_guard.hpp"
+#include "supervisor/core/status_builder.hpp"
 #include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
@@ -185,7 +185,7 @@ struct SupervisorApp::Impl {
   }
 
   // --- recording ---------------------------------------------------------------------------
-  void record(const std::string& topic, const google::protobuf::Message& m) {
+  void record(std::string_view topic, const google::protobuf::Message& m) {
     if (!opts.sink) return;
     opts.sink->record(topic, m.GetDescriptor()->full_name(), monotonic_ns(), m.SerializeAsString());
   }
@@ -206,7 +206,7 @@ struct SupervisorApp::Impl {
     report = make_report(a, reason);
     const std::string bytes = report.SerializeAsString();
     publish("report", bytes);
-    record("/supervisor/stability", report);
+    record(record::topic::kStability, report);
     spdlog::info("stability: {} (min damping ratio {:.4f}, round trip {} samples) [{}]",
                  report.verdict(), report.min_damping_ratio(), report.round_trip_samples(), reason);
   }
@@ -244,7 +244,7 @@ struct SupervisorApp::Impl {
     while (recent_alarms.size() > 50) recent_alarms.pop_back();
     const std::string bytes = a.SerializeAsString();
     publish("alarm", bytes);
-    record("/supervisor/alarms", a);
+    record(record::topic::kAlarms, a);
     std::string ev;
     for (const auto& [name, value, unit] : evidence)
       ev += fmt::format(" {}={:.6g}{}", name, value, unit);
@@ -346,7 +346,7 @@ struct SupervisorApp::Impl {
       feed_monitors(c, is_master, *n.oscillation, *n.passivity);
     }
     n.summary->add(t, now);
-    record(is_master ? "/master/telemetry" : "/slave/telemetry", t);
+    record(record::topic::telemetry(is_master), t);
   }
 
   // Any parameter in force that this supervisor did not approve (a RETUNE that reached a node
@@ -648,7 +648,7 @@ struct SupervisorApp::Impl {
     }
     *rec.mutable_reply() = r;
     rec.set_time_ns(monotonic_ns());
-    record("/supervisor/parameter_changes", rec);
+    record(record::topic::kParameterChanges, rec);
     return r.accepted()
                ? fmt::format("lowered fixtures (change {}): master {:.0f} N/m, slave {:.0f} N/m",
                              r.change_id(), live.master_fixture_N_per_m, live.slave_fixture_N_per_m)
@@ -674,7 +674,7 @@ struct SupervisorApp::Impl {
       *rec.mutable_request() = c;
       *rec.mutable_reply() = reply.change();
       rec.set_time_ns(monotonic_ns());
-      record("/supervisor/parameter_changes", rec);
+      record(record::topic::kParameterChanges, rec);
       spdlog::info("change request ({}): {}", c.requested_by(), reply.change().reason());
     } else if (req.has_node_command()) {
       *reply.mutable_node_command() = forward_node_command(req.node_command());
@@ -807,8 +807,8 @@ struct SupervisorApp::Impl {
     }
     opts.sink = opts.new_sink();
     recorder_failure_announced = false;
-    record("/config", loaded.config);
-    record("/supervisor/stability", report);
+    record(record::topic::kConfig, loaded.config);
+    record(record::topic::kStability, report);
     alarm(v1::Alarm::INFO, "command", "system", "recording started: " + opts.sink->file(), {});
   }
 
@@ -898,7 +898,7 @@ struct SupervisorApp::Impl {
         subscribe(master_setup.endpoints.telemetry, loaded.config.security().master_public_key()));
     slave_sub.emplace(
         subscribe(slave_setup.endpoints.telemetry, loaded.config.security().slave_public_key()));
-    record("/config", loaded.config);
+    record(record::topic::kConfig, loaded.config);
     publish_report("start");
     announce_record_failure();
     spdlog::info("supervising master {} and slave {}; reports on {}, requests on {}",
@@ -996,7 +996,7 @@ struct SupervisorApp::Impl {
         if (++checks % 10 == 0 && opts.sink) {
           v1::SupervisorReply status;
           on_request(v1::SupervisorRequest{}, status);
-          record("/supervisor/status", status.status());
+          record(record::topic::kStatus, status.status());
         }
       }
     }

@@ -15,28 +15,14 @@
 #include <vector>
 
 #include "common/config/config_loader.hpp"
+#include "common/record/session.hpp"
 
 namespace teleop::supervisor {
 
-// Where recorded messages go (the MCAP session file; tests may capture them).
-class RecordSink {
- public:
-  virtual ~RecordSink() = default;
-  // `type` names the protobuf message type of `bytes` (its full name).
-  virtual void record(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
-                      const std::string& bytes) = 0;
-  [[nodiscard]] virtual std::string file() const { return {}; }
-  [[nodiscard]] virtual std::uint64_t recorded() const { return 0; }
-  [[nodiscard]] virtual std::uint64_t drops() const { return 0; }
-  [[nodiscard]] virtual std::uint64_t bytes() const { return 0; }
-  // "" while recording works; else why it stopped (disk full, I/O error), naming the file.
-  [[nodiscard]] virtual std::string error() const { return {}; }
-};
-
 struct SupervisorOptions {
-  std::unique_ptr<RecordSink> sink{};  // none: no recording
+  std::unique_ptr<record::SessionSink> sink{};  // none: no recording
   // Starts a new session file on request (a console's "start recording"); none: refused.
-  std::function<std::unique_ptr<RecordSink>()> new_sink{};
+  std::function<std::unique_ptr<record::SessionSink>()> new_sink{};
   std::string record_dir{};
   std::string log_file{};  // rotating log file; empty: terminal only
   // Recording was asked for but could not start (e.g. a read-only record directory): why.

@@ -11,9 +11,9 @@
 #include <optional>
 #include <thread>
 
+#include "common/record/session_recorder.hpp"
 #include "common/runtime/service_notify.hpp"
 #include "common/stability/analyzer.hpp"
-#include "supervisor/daemon/session_recorder.hpp"
 #include "supervisor/daemon/supervisor_app.hpp"
 
 namespace teleop::supervisor {
@@ -33,7 +33,7 @@ void start_recording(const std::filesystem::path& dir, SupervisorOptions& option
                      std::vector<spdlog::sink_ptr>& sinks) {
   try {
     std::filesystem::create_directories(dir);
-    options.sink = make_session_recorder(dir);
+    options.sink = record::make_session_recorder(dir);
   } catch (const std::exception& e) {
     options.sink.reset();
     options.record_failure = "cannot record in " + dir.string() + ": " + e.what();
@@ -104,7 +104,7 @@ int run_supervisor_main(int argc, char** argv) {
     options.record_dir = dir.string();
     options.new_sink = [dir] {
       std::filesystem::create_directories(dir);
-      return make_session_recorder(dir);
+      return record::make_session_recorder(dir);
     };
     if (recording) start_recording(dir, options, sinks);
     auto logger = std::make_shared<spdlog::logger>("teleop-supervisor", sinks.begin(), sinks.end());

@@ -16,8 +16,8 @@
 #include "common/record/proto_schema.hpp"
 #include "common/scene/lockstep.hpp"
 #include "common/stability/analyzer.hpp"
-#include "supervisor/daemon/report.hpp"
-#include "supervisor/daemon/stability_guard.hpp"
+#include "supervisor/core/report.hpp"
+#include "supervisor/core/stability_guard.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/supervisor.pb.h"
@@ -60,7 +60,7 @@ constexpr std::size_t kCyclesPerMessage = 20;
   return path.size() >= 5 && path.compare(path.size() - 5, 5, ".mcap") == 0;
 }
 
-// What the supervisor would publish at the start of this session (supervisor/daemon/report.hpp):
+// What the supervisor would publish at the start of this session (supervisor/core/report.hpp):
 // the analyser on the configured loop with the scene's round trip, which is the one the lockstep
 // simulator plays.
 [[nodiscard]] v1::StabilityReport start_report(const TeleopParams& params) {

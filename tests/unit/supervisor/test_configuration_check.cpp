@@ -3,7 +3,7 @@
 // fields telemetry shows to differ.
 #include <gtest/gtest.h>
 
-#include "supervisor/daemon/configuration_check.hpp"
+#include "supervisor/core/configuration_check.hpp"
 
 namespace teleop::supervisor {
 namespace {

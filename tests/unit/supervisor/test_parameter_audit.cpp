@@ -7,7 +7,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "supervisor/daemon/parameter_audit.hpp"
+#include "supervisor/core/parameter_audit.hpp"
 
 namespace teleop::supervisor {
 namespace {

@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "supervisor/daemon/monitors.hpp"
-#include "supervisor/daemon/status_builder.hpp"
+#include "supervisor/core/monitors.hpp"
+#include "supervisor/core/status_builder.hpp"
 
 namespace teleop::supervisor {
 namespace {

@@ -13,8 +13,8 @@
 #include "common/config/config_loader.hpp"
 #include "common/config/scene_loader.hpp"
 #include "common/scene/lockstep.hpp"
-#include "supervisor/daemon/monitors.hpp"
-#include "supervisor/daemon/stability_guard.hpp"
+#include "supervisor/core/monitors.hpp"
+#include "supervisor/core/stability_guard.hpp"
 #include "tests/unit/stability/window_example.hpp"
 
 namespace teleop::supervisor {

@@ -1,4 +1,4 @@
-#include "supervisor/daemon/parameter_audit.hpp"
+#include "supervisor/core/parameter_audit.hpp"
 
 #include <fmt/format.h>
 

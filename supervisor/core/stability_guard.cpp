@@ -1,4 +1,4 @@
-#include "supervisor/daemon/stability_guard.hpp"
+#include "supervisor/core/stability_guard.hpp"
 
 #include <fmt/core.h>
 

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string>
 
-#include "supervisor/daemon/stability_guard.hpp"
+#include "supervisor/core/stability_guard.hpp"
 #include "teleop/v1/supervisor.pb.h"
 
 namespace teleop::supervisor {

@@ -1,4 +1,4 @@
-#include "supervisor/daemon/session_recorder.hpp"
+#include "common/record/session_recorder.hpp"
 
 #include <google/protobuf/descriptor.h>
 #include <time.h>
@@ -10,31 +10,31 @@
 #include "common/record/proto_schema.hpp"
 #include "common/record/recorder.hpp"
 
-namespace teleop::supervisor {
+namespace teleop::record {
 namespace {
 
-class SessionRecorder final : public RecordSink {
+class SessionRecorder final : public SessionSink {
  public:
   explicit SessionRecorder(std::filesystem::path file) : file_(std::move(file)), recorder_(file_) {}
   ~SessionRecorder() override { (void)recorder_.close(); }
 
-  void record(const std::string& topic, const std::string& type, std::int64_t log_time_ns,
+  void record(std::string_view topic, const std::string& type, std::int64_t log_time_ns,
               const std::string& bytes) override {
     std::uint16_t channel = 0;
     {
       std::lock_guard lock(mutex_);
-      auto it = channels_.find(topic);
+      auto it = channels_.find(std::string(topic));
       if (it == channels_.end()) {
         const google::protobuf::Descriptor* d =
             google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
         if (d == nullptr) throw std::invalid_argument("unknown message type " + type);
         auto schema = schemas_.find(type);
         if (schema == schemas_.end()) {
-          schema = schemas_.emplace(type, recorder_.add_schema(record::protobuf_schema(d))).first;
+          schema = schemas_.emplace(type, recorder_.add_schema(protobuf_schema(d))).first;
         }
         it = channels_
-                 .emplace(topic,
-                          recorder_.add_channel(record::protobuf_channel(schema->second, topic)))
+                 .emplace(std::string(topic), recorder_.add_channel(protobuf_channel(
+                                                  schema->second, std::string(topic))))
                  .first;
       }
       channel = it->second;
@@ -53,7 +53,7 @@ class SessionRecorder final : public RecordSink {
 
  private:
   std::filesystem::path file_;
-  record::Recorder recorder_;
+  Recorder recorder_;
   std::mutex mutex_;
   std::map<std::string, std::uint16_t> channels_;
   std::map<std::string, std::uint16_t> schemas_;
@@ -61,11 +61,11 @@ class SessionRecorder final : public RecordSink {
 
 }  // namespace
 
-std::unique_ptr<RecordSink> make_session_recorder_at(const std::filesystem::path& file) {
+std::unique_ptr<SessionSink> make_session_recorder_at(const std::filesystem::path& file) {
   return std::make_unique<SessionRecorder>(file);
 }
 
-std::unique_ptr<RecordSink> make_session_recorder(const std::filesystem::path& dir) {
+std::unique_ptr<SessionSink> make_session_recorder(const std::filesystem::path& dir) {
   const time_t now = time(nullptr);
   tm utc{};
   gmtime_r(&now, &utc);
@@ -79,4 +79,4 @@ std::unique_ptr<RecordSink> make_session_recorder(const std::filesystem::path& d
   return make_session_recorder_at(file);
 }
 
-}  // namespace teleop::supervisor
+}  // namespace teleop::record

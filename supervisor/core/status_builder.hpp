@@ -7,7 +7,7 @@
 #include <cstdint>
 #include <deque>
 
-#include "supervisor/daemon/monitors.hpp"
+#include "supervisor/core/monitors.hpp"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
 

@@ -1,4 +1,4 @@
-#include "supervisor/daemon/monitors.hpp"
+#include "supervisor/core/monitors.hpp"
 
 #include <cmath>
 #include <stdexcept>

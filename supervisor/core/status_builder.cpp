@@ -1,4 +1,4 @@
-#include "supervisor/daemon/status_builder.hpp"
+#include "supervisor/core/status_builder.hpp"
 
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-#include "supervisor/daemon/report.hpp"
+#include "supervisor/core/report.hpp"
 
 namespace teleop::supervisor {
 

@@ -1,4 +1,4 @@
-#include "supervisor/daemon/configuration_check.hpp"
+#include "supervisor/core/configuration_check.hpp"
 
 #include <fmt/core.h>
 
