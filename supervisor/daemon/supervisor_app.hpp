@@ -1,9 +1,6 @@
-// teleop-supervisor (issue 5): subscribes to both nodes' telemetry, analyses the running
-// configuration with what the nodes really run (measured rate and round trip, parameters in
-// force), publishes StabilityReports and Alarms, guards parameter changes (analysed first,
-// applied by both nodes at an agreed master sequence, ramped), watches heartbeats, overruns,
-// loss, oscillation and passivity, escalates (warn -> lower the fixture stiffness within the
-// guard -> disengage both nodes), and records the session.
+// teleop-supervisor: the sockets (the nodes' telemetry, the report publisher, the request
+// endpoint, the node command clients) and the main loop around SupervisorCore
+// (supervisor/core/supervisor_core.hpp), which decides everything the supervisor does.
 #pragma once
 
 #include <atomic>
@@ -15,20 +12,9 @@
 #include <vector>
 
 #include "common/config/config_loader.hpp"
-#include "common/record/session.hpp"
+#include "supervisor/core/supervisor_core.hpp"
 
 namespace teleop::supervisor {
-
-struct SupervisorOptions {
-  std::unique_ptr<record::SessionSink> sink{};  // none: no recording
-  // Starts a new session file on request (a console's "start recording"); none: refused.
-  std::function<std::unique_ptr<record::SessionSink>()> new_sink{};
-  std::string record_dir{};
-  std::string log_file{};  // rotating log file; empty: terminal only
-  // Recording was asked for but could not start (e.g. a read-only record directory): why.
-  // The supervisor then supervises without recording and raises a CRITICAL alarm at start.
-  std::string record_failure{};
-};
 
 class SupervisorApp {
  public:

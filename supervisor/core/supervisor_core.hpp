@@ -1,0 +1,222 @@
+// SupervisorCore: the supervisor without sockets, threads or a clock of its own. Telemetry,
+// requests and the time come in; reports, alarms, status, recorded messages and node commands
+// go out as typed values through SupervisorPorts and the session sink. teleop-supervisor
+// (supervisor/daemon) owns the sockets and the loop around it; tests drive it with a fake
+// clock and fake nodes (tests/unit/supervisor/test_supervisor_core.cpp).
+//
+// What it does (docs/architecture.md "The supervisor"): analyses the running configuration
+// with what the nodes really run (the measured rate and round trip, the parameters in force),
+// publishes StabilityReports and Alarms, guards parameter changes (analysed first, applied by
+// both nodes at an agreed master sequence, ramped), audits the parameters in force, watches
+// heartbeats, overruns, loss, oscillation and passivity, escalates through EscalationLadder
+// (warn -> lower the fixtures within the guard -> disengage both nodes), lowers the fixtures
+// when the measured round trip makes the model miss its requirement (retried until applied),
+// and records the session.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <tuple>
+#include <vector>
+
+#include "common/config/config_loader.hpp"
+#include "common/config/node_loader.hpp"
+#include "common/record/session.hpp"
+#include "supervisor/core/escalation.hpp"
+#include "supervisor/core/monitors.hpp"
+#include "supervisor/core/parameter_audit.hpp"
+#include "supervisor/core/stability_guard.hpp"
+#include "supervisor/core/status_builder.hpp"
+#include "teleop/v1/config.pb.h"
+#include "teleop/v1/supervisor.pb.h"
+#include "teleop/v1/telemetry.pb.h"
+
+namespace teleop::supervisor {
+
+enum class Side { kMaster, kSlave };
+
+// What the core does to the world. The daemon sends these over its sockets; tests collect them.
+class SupervisorPorts {
+ public:
+  virtual ~SupervisorPorts() = default;
+  // A command to one node and its reply; none when the node did not answer in time.
+  virtual std::optional<v1::NodeCommandReply> command(Side node, const v1::NodeCommand& c) = 0;
+  // For consoles (the report endpoint's topics "report", "alarm" and "status").
+  virtual void report(const v1::StabilityReport& r) = 0;
+  virtual void alarm(const v1::Alarm& a) = 0;
+  virtual void status(const v1::SupervisorStatus& s) = 0;
+};
+
+struct SupervisorOptions {
+  std::unique_ptr<record::SessionSink> sink{};  // none: no recording
+  // Starts a new session file on request (a console's "start recording"); none: refused.
+  std::function<std::unique_ptr<record::SessionSink>()> new_sink{};
+  std::string record_dir{};
+  std::string log_file{};  // rotating log file; empty: terminal only
+  // Recording was asked for but could not start (e.g. a read-only record directory): why.
+  // The supervisor then supervises without recording and raises a CRITICAL alarm at start.
+  std::string record_failure{};
+  std::uint32_t pid{0};  // reported in status
+};
+
+// Timings of the supervisor's own checks.
+inline constexpr std::int64_t kCheckPeriodNs = 100'000'000;      // the checks, 10 per second
+inline constexpr std::int64_t kHeartbeatNs = 500'000'000;        // a node silent this long
+inline constexpr std::int64_t kRoundTripHoldNs = 5'000'000'000;  // the model's round trip down
+inline constexpr std::int64_t kLoweringRetryNs = 200'000'000;    // a refused lowering again
+// An iteration of the owner's loop later than this after the previous one: the supervisor
+// itself stalled (its poll waits at most 20 ms, a status request at most a node command's
+// 0.5 s).
+inline constexpr std::int64_t kOwnStallNs = 250'000'000;
+
+class SupervisorCore {
+ public:
+  SupervisorCore(const config::LoadedConfig& config, SupervisorOptions options,
+                 SupervisorPorts& ports);
+
+  // Records the configuration and the first report; a recorder that could not start is a
+  // CRITICAL alarm.
+  void start(std::int64_t now_ns);
+  // One telemetry message from a node.
+  void on_telemetry(Side side, const v1::Telemetry& t, std::int64_t now_ns);
+  // One request from a client with this CURVE public key (Z85; empty: plaintext, local).
+  [[nodiscard]] v1::SupervisorReply on_request(const v1::SupervisorRequest& req,
+                                               const std::string& client_key, std::int64_t now_ns);
+  // At every iteration of the owner's loop: the supervisor's own stalls, and every 100 ms the
+  // checks (configurations, heartbeats, overruns, loss, the measured model, oscillation and
+  // passivity through the ladder, the recorder) and the status for consoles.
+  void tick(std::int64_t now_ns);
+
+  [[nodiscard]] const config::NodeSetup& node(Side side) const {
+    return side == Side::kMaster ? master_setup_ : slave_setup_;
+  }
+  [[nodiscard]] const std::string& report_endpoint() const { return report_endpoint_; }
+  [[nodiscard]] const std::string& request_endpoint() const { return request_endpoint_; }
+  [[nodiscard]] const std::vector<std::string>& read_only_keys() const { return read_only_keys_; }
+  [[nodiscard]] EscalationState escalation() const { return ladder_.state(); }
+  [[nodiscard]] const LiveInputs& live() const { return live_; }
+  [[nodiscard]] const v1::StabilityReport& last_report() const { return report_; }
+  [[nodiscard]] bool lowering_pending() const { return lowering_pending_; }
+
+ private:
+  // One node as the supervisor sees it through its telemetry.
+  struct NodeView {
+    std::string name;
+    Side side{Side::kMaster};
+    std::optional<v1::Telemetry> last{};
+    std::int64_t last_received_ns{0};
+    std::uint64_t session_id{0};
+    v1::NodeMode mode{v1::NODE_MODE_UNSPECIFIED};
+    std::uint64_t overruns_at_check{0};
+    std::int64_t overrun_check_ns{0};
+    std::uint64_t lost_at_check{0};
+    std::uint64_t accepted_at_check{0};
+    std::deque<std::int64_t> cycle_times{};  // for the measured rate
+    std::unique_ptr<OscillationMonitor> oscillation{};
+    std::unique_ptr<PassivityObserver> passivity{};
+    std::unique_ptr<NodeSummaryBuilder> summary{};
+    std::int64_t finding_since_ns{0};
+    // Parameters in force that the supervisor did not approve (change number and fields), and
+    // when it last e-stopped the nodes for them.
+    std::string unapproved{};
+    std::int64_t unapproved_estop_ns{0};
+    std::uint64_t newest_change_seen{0};  // this session's
+  };
+  // A monitor's finding on one node at one check.
+  struct Finding {
+    std::string what;  // "" none
+    std::string kind;  // the alarm's kind: "oscillation" or "passivity"
+    std::vector<std::tuple<std::string, double, std::string>> evidence;
+  };
+  // What lowering the fixtures came to.
+  struct Lowering {
+    bool applied{false};
+    std::string action;  // said in the alarm
+  };
+  using Evidence = std::vector<std::tuple<std::string, double, std::string>>;
+
+  // supervisor_core.cpp: messages out, telemetry, changes, requests, status.
+  void record(std::string_view topic, const google::protobuf::Message& m);
+  std::optional<v1::NodeCommandReply> command(Side side, v1::NodeCommand::Kind kind);
+  [[nodiscard]] std::uint64_t master_sequence() const;
+  [[nodiscard]] v1::StabilityReport make_report(const Assessment& a,
+                                                const std::string& reason) const;
+  void publish_report(const std::string& reason);
+  void alarm(v1::Alarm::Severity severity, const std::string& kind, const std::string& side,
+             const std::string& message, const Evidence& evidence, const std::string& action = "");
+  v1::ParameterChangeReply apply_change(const ChangeRequest& change, bool dry_run,
+                                        const std::string& why);
+  [[nodiscard]] v1::ParameterUpdate make_update(const LiveInputs& proposed, std::uint64_t id,
+                                                std::uint64_t at) const;
+  void on_change_request(const v1::ParameterChangeRequest& c, v1::SupervisorReply& reply);
+  void audit_parameters(NodeView& n, const v1::Telemetry& t);
+  void adopt_parameters_in_force(const v1::Telemetry& t);
+  void handle_request(const v1::SupervisorRequest& req, v1::SupervisorReply& reply);
+  [[nodiscard]] std::string read_only_refusal(const v1::SupervisorRequest& req,
+                                              const std::string& key) const;
+  v1::NodeCommandResult forward_node_command(const v1::NodeCommandRequest& r);
+  void set_recording(bool on, v1::SupervisorReply& reply);
+  void fill_status(v1::SupervisorStatus& s, bool may_command) const;
+  void fill_configuration_status(v1::SupervisorStatus& s) const;
+
+  // supervisor_checks.cpp: the 100 ms checks.
+  void excuse_own_stall();
+  void check_live();
+  void check_configurations();
+  void check_heartbeats(NodeView& n);
+  void update_model();
+  void retry_lowering();
+  void check_findings();
+  [[nodiscard]] Finding finding(NodeView& n) const;
+  void disengage_both(const NodeView& n, const Finding& f);
+  Lowering lower_fixtures(const std::string& why);
+  void check_recorder();
+
+  SupervisorPorts& ports_;
+  config::LoadedConfig loaded_;
+  TeleopParams params_;
+  StabilityGuard guard_;
+  ParameterAudit audit_;
+  SupervisorOptions opts_;
+  config::NodeSetup master_setup_;
+  config::NodeSetup slave_setup_;
+  std::string report_endpoint_;
+  std::string request_endpoint_;
+  double oscillation_threshold_m_{0.0};
+  double passivity_threshold_J_{0.0};
+  double passivity_power_threshold_W_{0.0};
+  std::int64_t escalation_ns_{0};
+  double change_ramp_ms_{200.0};
+  double period_s_{0.001};
+  std::vector<std::string> read_only_keys_{};
+
+  std::int64_t now_ns_{0};  // the time of the input being handled
+  std::int64_t next_check_ns_{0};
+  std::int64_t last_iteration_ns_{0};
+  std::uint64_t checks_{0};
+  NodeView master_{};
+  NodeView slave_{};
+  LiveInputs live_{};
+  std::int64_t measured_round_trip_ns_{0};
+  RoundTripModel round_trip_model_{kRoundTripHoldNs};
+  // The round-trip guard's lowering was refused (retried every kLoweringRetryNs).
+  bool lowering_pending_{false};
+  std::int64_t last_lowering_try_ns_{0};
+  EscalationLadder ladder_{0, 0};
+  std::uint64_t change_id_{0};
+  std::uint64_t last_sent_change_id_{0};  // the newest change number sent, taken or not
+  v1::StabilityReport report_{};
+  std::deque<v1::Alarm> recent_alarms_{};
+  std::map<std::string, std::int64_t> last_alarm_ns_{};
+  bool heard_master_{false};
+  std::string configuration_mismatch_{};  // "" while the supervisor and both nodes agree
+  bool recorder_failure_announced_{false};
+  bool recording_file_lost_announced_{false};
+};
+
+}  // namespace teleop::supervisor
