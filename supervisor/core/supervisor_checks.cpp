@@ -148,7 +148,9 @@ void SupervisorCore::update_model() {
         {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
   publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
   if (!rtt_grew || guard_.assess(live_).acceptable()) return;
-  // Announced like every change the supervisor makes: an ACTION alarm naming it.
+  // Announced like every change the supervisor makes: an ACTION alarm naming it. A refused
+  // lowering is tried again kLoweringRetryNs after this attempt.
+  last_lowering_try_ns_ = now_ns_;
   const Lowering l = lower_fixtures("the measured round trip grew");
   alarm(v1::Alarm::ACTION, "round_trip", "system",
         fmt::format("the model with a {}-sample round trip no longer meets the requirement",
