@@ -35,11 +35,7 @@
 // change by at most max_rate_N_per_s * T per sample (flags.saturated, flags.rate_limited).
 #pragma once
 
-#include "common/control/actuator_limiter.hpp"
-#include "common/control/command.hpp"
-#include "common/control/fixture.hpp"
-#include "common/control/law_params.hpp"
-#include "common/control/velocity_estimator.hpp"
+#include "common/control/law_core.hpp"
 
 namespace teleop::control {
 
@@ -71,45 +67,45 @@ class MasterLaw {
   void reset() noexcept;
   void reset(double position_m) noexcept;
 
-  [[nodiscard]] bool faulted() const noexcept { return faulted_; }
-  [[nodiscard]] double coupling_weight() const noexcept { return weight_; }
-  [[nodiscard]] double offset_m() const noexcept { return offset_m_; }
-  [[nodiscard]] double velocity_m_per_s() const noexcept { return estimator_.velocity_m_per_s(); }
-  [[nodiscard]] const LawParams& params() const noexcept { return params_; }
+  [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
+  [[nodiscard]] double coupling_weight() const noexcept { return state_.weight; }
+  [[nodiscard]] double offset_m() const noexcept { return state_.offset_m; }
+  [[nodiscard]] double velocity_m_per_s() const noexcept {
+    return core_.estimator().velocity_m_per_s();
+  }
+  [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
 
  private:
-  [[nodiscard]] Command latch_fault() noexcept;
-  void clear_state() noexcept;
+  void set_terms(const Gains& g) noexcept;
+  [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
 
-  LawParams params_{};
-  VelocityEstimator estimator_;
-  UnilateralFixture fixture_;
-  ActuatorLimiter limiter_;
-  double fade_step_{1.0};  // weight change per sample
+  LawCore core_;
+  // Which terms are non-zero (from the gains and beta).
   bool use_kpm_{false};
   bool use_kdm_{false};
   bool use_kfm_{false};
   bool use_kvm_{false};
+  bool clutch_requested_{false};  // kept by reset()
 
-  bool clutch_requested_{false};
-  bool was_clutched_{false};
-  bool hold_anchored_{false};  // x_hold came from a published position or the slave's
-  double hold_m_{0.0};
-  double offset_m_{0.0};
-  double weight_{0.0};
-  double velocity_source_m_per_s_{0.0};  // v_r: live while coupled, held otherwise
-
-  bool have_peer_{false};
-  double peer_position_m_{0.0};
-  double peer_velocity_m_per_s_{0.0};
-  double peer_force_N_{0.0};
-
-  bool stepped_{false};
-  bool published_unclutched_{false};
-  double published_position_m_{0.0};
-  double published_velocity_m_per_s_{0.0};
-  bool published_clutched_{false};
-  bool faulted_{false};
+  // Everything reset() clears.
+  struct State {
+    bool was_clutched{false};
+    bool hold_anchored{false};  // x_hold came from a published position or the slave's
+    double hold_m{0.0};
+    double offset_m{0.0};
+    double weight{0.0};
+    double velocity_source_m_per_s{0.0};  // v_r: live while coupled, held otherwise
+    bool have_peer{false};
+    double peer_position_m{0.0};
+    double peer_velocity_m_per_s{0.0};
+    double peer_force_N{0.0};
+    bool stepped{false};
+    bool published_unclutched{false};
+    double published_position_m{0.0};
+    double published_velocity_m_per_s{0.0};
+    bool published_clutched{false};
+  };
+  State state_{};
 };
 
 }  // namespace teleop::control

@@ -39,11 +39,7 @@
 // latches until reset(); peer_state() then reports valid = false.
 #pragma once
 
-#include "common/control/actuator_limiter.hpp"
-#include "common/control/command.hpp"
-#include "common/control/fixture.hpp"
-#include "common/control/law_params.hpp"
-#include "common/control/velocity_estimator.hpp"
+#include "common/control/law_core.hpp"
 
 namespace teleop::control {
 
@@ -73,23 +69,22 @@ class SlaveLaw {
   void reset() noexcept;
   void reset(double position_m) noexcept;
 
-  [[nodiscard]] bool faulted() const noexcept { return faulted_; }
-  [[nodiscard]] bool holding() const noexcept { return holding_; }
+  [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
+  [[nodiscard]] bool holding() const noexcept { return state_.holding; }
   // The position reference x_r (slave coordinates) of the last step, before clamping.
-  [[nodiscard]] double reference_m() const noexcept { return reference_m_; }
-  [[nodiscard]] double reference_weight() const noexcept { return weight_; }
-  [[nodiscard]] double velocity_m_per_s() const noexcept { return estimator_.velocity_m_per_s(); }
-  [[nodiscard]] const LawParams& params() const noexcept { return params_; }
+  [[nodiscard]] double reference_m() const noexcept { return state_.reference_m; }
+  [[nodiscard]] double reference_weight() const noexcept { return state_.weight; }
+  [[nodiscard]] double velocity_m_per_s() const noexcept {
+    return core_.estimator().velocity_m_per_s();
+  }
+  [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
 
  private:
-  [[nodiscard]] Command latch_fault() noexcept;
-  void clear_state() noexcept;
+  void set_terms(const Gains& g) noexcept;
+  [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
 
-  LawParams params_{};
-  VelocityEstimator estimator_;
-  UnilateralFixture fixture_;
-  ActuatorLimiter limiter_;
-  double fade_step_{1.0};
+  LawCore core_;
+  // Which terms are non-zero (from the gains) and which limits are set.
   bool follows_master_{false};  // K_ps or K_ds non-zero
   bool use_kps_{false};
   bool use_kds_{false};
@@ -97,19 +92,21 @@ class SlaveLaw {
   bool check_position_{false};
   bool check_velocity_{false};
 
-  bool has_reference_{false};
-  bool was_following_{false};
-  bool holding_{false};
-  double reference_m_{0.0};  // x_r of the last step (held while holding)
-  double mismatch_m_{0.0};   // held minus live reference when following resumed
-  double mismatch_weight_{0.0};
-  double reference_velocity_m_per_s_{0.0};  // v_r: live while following, held otherwise
-  double weight_{0.0};
-
-  bool stepped_{false};
-  double position_m_{0.0};
-  double measured_force_N_{0.0};
-  bool faulted_{false};
+  // Everything reset() clears.
+  struct State {
+    bool has_reference{false};
+    bool was_following{false};
+    bool holding{false};
+    double reference_m{0.0};  // x_r of the last step (held while holding)
+    double mismatch_m{0.0};   // held minus live reference when following resumed
+    double mismatch_weight{0.0};
+    double reference_velocity_m_per_s{0.0};  // v_r: live while following, held otherwise
+    double weight{0.0};
+    bool stepped{false};
+    double position_m{0.0};
+    double measured_force_N{0.0};
+  };
+  State state_{};
 };
 
 }  // namespace teleop::control
