@@ -1,4 +1,4 @@
-// The closed force loop of Vlachos & Papadopoulos (DESIGN §2 "Force loop"):
+// The closed force loop of Vlachos & Papadopoulos (docs/architecture.md §2.8):
 //
 //   F_in = F_des + K_p (F_des - F_avg) + K_i I,   I(k) = I(k-1) + T (F_des - F_avg)(k)
 //

@@ -1,6 +1,6 @@
-// Parameters of the control core (DESIGN §2): the three-channel law with its fixtures, the
-// actuator limits of each side and the slave's workspace limits. Plain data; validate() is
-// setup code and may throw.
+// Parameters of the control core (docs/architecture.md §2.3): the three-channel law with its
+// fixtures, the actuator limits of each side and the slave's workspace limits. Plain data;
+// validate() is setup code and may throw.
 #pragma once
 
 #include <limits>

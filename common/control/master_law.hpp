@@ -1,4 +1,4 @@
-// The master half of the three-channel law (Abbott-Okamura eqs. 7-9, DESIGN §2):
+// The master half of the three-channel law (Abbott-Okamura eqs. 7-9, docs/architecture.md §2.3):
 //
 //   F_am = w beta [K_pm (x_r - x_s/alpha) + K_dm (w v_r - v_s/alpha) + K_fm F_e] + K_vm v_m + F_mVF
 //

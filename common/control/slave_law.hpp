@@ -1,4 +1,4 @@
-// The slave half of the three-channel law (Abbott-Okamura eqs. 7-9, DESIGN §2):
+// The slave half of the three-channel law (Abbott-Okamura eqs. 7-9, docs/architecture.md §2.3):
 //
 //   F_as = K_ps (x_r - x_s) + K_ds (u v_r - v_s) - K_vs v_s - F_sVF
 //

@@ -1,4 +1,5 @@
-// Backward-difference velocity, optionally through the first-order low-pass of DESIGN §2.
+// Backward-difference velocity, optionally through the first-order low-pass of
+// docs/architecture.md §2.4.
 #pragma once
 
 namespace teleop::control {

@@ -1,5 +1,5 @@
-// Plain domain structs describing one teleoperator (DESIGN §2). No protobuf, no I/O: the
-// configuration loader fills these, the stability engine, control law and simulator read them.
+// Plain domain structs describing one teleoperator (docs/architecture.md §2). No protobuf, no I/O:
+// the configuration loader fills these, the stability engine, control law and simulator read them.
 #pragma once
 
 #include <vector>

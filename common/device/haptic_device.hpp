@@ -1,15 +1,16 @@
-// The one interface every haptic device implements (DESIGN §4), simulated or real; chosen by
-// configuration through make_device, never by scattered `if (sim)`.
+// The one interface every haptic device implements (docs/architecture.md §4.4), simulated or real;
+// chosen by configuration through make_device, never by scattered `if (sim)`.
 //
 // Lifecycle: configure() (setup: validate, allocate) -> activate() (start producing samples) ->
 // read()/write() at the loop rate -> deactivate(). read() and write() are RT-safe: no
 // allocation, no lock, no exception. Setup calls may allocate.
 //
-// Signs (DESIGN §2): positions along the device's arc, positive into the fixture/environment.
-// Command::force_N is the actuator's force on the device along +x. The master's law computes
-// F_am with F_h - F_am = (m s^2 + b s) X_m, so the master node writes force_N = -F_am; the slave
-// writes force_N = F_as. Sample::force_N is the load cell, compression positive: on the master
-// the human's force on the handle (F_h), on the slave the device's force on its environment (F_e).
+// Signs (docs/architecture.md §2.1): positions along the device's arc, positive into the
+// fixture/environment. Command::force_N is the actuator's force on the device along +x. The
+// master's law computes F_am with F_h - F_am = (m s^2 + b s) X_m, so the master node writes
+// force_N = -F_am; the slave writes force_N = F_as. Sample::force_N is the load cell, compression
+// positive: on the master the human's force on the handle (F_h), on the slave the device's force
+// on its environment (F_e).
 #pragma once
 
 #include <chrono>

@@ -1,6 +1,6 @@
-// The simulated haptic device (DESIGN §1: simulation is the default device): the plant, its
-// sensors and actuator, and the human (master side) or environment (slave side) in the same
-// physics step.
+// The simulated haptic device (docs/architecture.md §1.4: simulation is the default device): the
+// plant, its sensors and actuator, and the human (master side) or environment (slave side) in the
+// same physics step.
 //
 // Time is the device's own: advance(period) steps the physics one control period with the last
 // written command and takes the next sample. The lockstep simulator calls it once per period; a

@@ -148,7 +148,7 @@ double NodeCore::master_command(Mode mode, double weight, double position_m,
                                      peer_.state.force_N, false, coupled};
       const control::Command c = master_law_->step(position_m, slave);
       flags |= law_flags(c.flags);
-      // The master's actuator is pushed by -F_am (DESIGN §2).
+      // The master's actuator is pushed by -F_am (docs/architecture.md §2.1).
       return weight * -c.force_N + (1.0 - weight) * centring();
     }
     case Mode::kSafe:

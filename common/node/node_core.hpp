@@ -1,7 +1,7 @@
-// The RT half of a node (DESIGN §1, §4; issue 4 "Loop"): one call of step(now) per cycle does
-// read the device's latest sample -> take the newest peer state -> state machine -> control law
-// -> limits -> command -> push own state and a fixed-size telemetry record. It touches only the
-// device and lock-free buffers: the link, command and telemetry threads (node_app) do the
+// The RT half of a node (docs/architecture.md §1.1, §4; issue 4 "Loop"): one call of step(now) per
+// cycle does read the device's latest sample -> take the newest peer state -> state machine ->
+// control law -> limits -> command -> push own state and a fixed-size telemetry record. It touches
+// only the device and lock-free buffers: the link, command and telemetry threads (node_app) do the
 // sockets, protobuf and logging. Tests call step() with a fake clock.
 //
 // What each mode commands:

@@ -1,5 +1,5 @@
-// A node process (teleop-master, teleop-slave): the RT loop around NodeCore and the threads
-// that keep sockets, protobuf and logging off it (DESIGN §1; issue 4):
+// A node process (teleop-master, teleop-slave): the RT loop around NodeCore and the threads that
+// keep sockets, protobuf and logging off it (docs/architecture.md §4.2; issue 4):
 //  - loop:      PeriodicLoop at sample_rate_hz running NodeCore::step (RT settings applied);
 //  - sender:    woken by the loop each cycle, encodes the newest own state and publishes it;
 //  - receiver:  takes the newest peer state (conflated), drops and counts bad ones, hands the

@@ -1,7 +1,7 @@
-// The physics of one simulated haptic device and what it is coupled to (DESIGN §1-2): a
-// mass-damper along the device's arc, the human's impedance on the master side, an environment
-// on the slave side and Coulomb friction, stepped over one control period with the actuator
-// force held (ZOH).
+// The physics of one simulated haptic device and what it is coupled to (docs/architecture.md §1.4,
+// §2.2): a mass-damper along the device's arc, the human's impedance on the master side, an
+// environment on the slave side and Coulomb friction, stepped over one control period with the
+// actuator force held (ZOH).
 //
 //   (m + m_h) x'' + (b + b_h) x' + k_h x = u + F_h*(t) - F_e(x, x') - F_c sign(x')
 //

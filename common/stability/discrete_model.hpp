@@ -1,6 +1,6 @@
-// The sampled-data teleoperator of DESIGN §2 as x(k+1) = A x(k), linearised about the
-// equilibrium inside the fixtures (the paper's "dual system": fixtures lumped into the
-// position gains, exogenous F_h* and F_e constant).
+// The sampled-data teleoperator of docs/architecture.md §2.5 as x(k+1) = A x(k), linearised about
+// the equilibrium inside the fixtures (the paper's "dual system": fixtures lumped into the position
+// gains, exogenous F_h* and F_e constant).
 #pragma once
 
 #include <Eigen/Core>
@@ -12,7 +12,7 @@
 
 namespace teleop::stability {
 
-// Which parts of the loop interact, decided from the gains (DESIGN §2 "Decoupled cases").
+// Which parts of the loop interact, decided from the gains (docs/architecture.md §2.6).
 enum class Structure {
   kBilateral,   // master and slave feed back on each other: one block, the delay enters
   kDecoupled,   // one side ignores the other: master block (with its human) and slave block

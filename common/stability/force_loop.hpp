@@ -1,4 +1,5 @@
-// Stability of the Vlachos-Papadopoulos force loop (paper eqs. 13-17, Table II; DESIGN §2):
+// Stability of the Vlachos-Papadopoulos force loop (paper eqs. 13-17, Table II;
+// docs/architecture.md §2.8):
 //   1 + G_m G_v G_c H_s = 0,  G_m = 1/(M s^2 + B s),  G_v = K_v + B_v s,
 //   G_c = K_p (P) or K_p + K_i/s (PI, when ki > 0),  H_s = (2 - T s)/(2 + T s),  T = 1/rate.
 // The model is the paper's: the sensor average (sensor_average_samples) is not part of it.

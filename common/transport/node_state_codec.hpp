@@ -1,6 +1,7 @@
 // NodeState on the wire: protobuf bytes <-> the plain record the nodes use, and the receiver's
-// guard against what a network does to packets (DESIGN §1: protobuf stops at transport/).
-// Runs on the link thread (protobuf allocates), never on the RT thread.
+// guard against what a network does to packets (docs/architecture.md §3.2: protobuf stops here; the
+// nodes' RT code sees the plain record). Runs on the link thread (protobuf allocates), never on the
+// RT thread.
 #pragma once
 
 #include <array>
@@ -94,7 +95,7 @@ class RoundTripEstimator {
   [[nodiscard]] std::optional<std::chrono::nanoseconds> echoed(
       std::uint64_t sequence, std::chrono::nanoseconds peer_held,
       std::chrono::nanoseconds now) const noexcept;
-  // Rounded up to whole periods, as the stability model takes it (DESIGN §2).
+  // Rounded up to whole periods, as the stability model takes it (docs/architecture.md §2.5).
   [[nodiscard]] static int samples(std::chrono::nanoseconds round_trip,
                                    std::chrono::nanoseconds period) noexcept;
 

@@ -1,6 +1,6 @@
-// The node link's sockets, configured once here so every process gets the same behaviour.
-// Used on the link thread only: ZeroMQ allocates for messages over 33 bytes, so none of this
-// runs on the RT thread (DESIGN §1).
+// The node link's sockets, configured once here so every process gets the same behaviour. Used on
+// the link thread only: ZeroMQ allocates for messages over 33 bytes, so none of this runs on the RT
+// thread (docs/architecture.md §4.2).
 //
 // Why the options differ from ZeroMQ's defaults:
 //  - State (PUB/SUB) is a latest-value stream: a control law wants the newest peer state,

@@ -352,7 +352,7 @@ TEST(Replay, CsvRowsAreTheCyclesAndEqualTheSimulateCsv) {
     EXPECT_NEAR(rep.num(s, "time_s"), sim.num(k, "time_s") - 1.0 / rate, 1e-9) << k;
     EXPECT_EQ(rep.num(m, "position_m"), sim.num(k, "master_sensed_m")) << k;
     EXPECT_EQ(rep.num(s, "position_m"), sim.num(k, "slave_sensed_m")) << k;
-    // The master's actuator is driven by -F_am (DESIGN §2); the slave's by F_as.
+    // The master's actuator is driven by -F_am (docs/architecture.md §2.1); the slave's by F_as.
     EXPECT_EQ(rep.num(m, "command_N"), -sim.num(k, "master_force_N")) << k;
     EXPECT_EQ(rep.num(s, "command_N"), sim.num(k, "slave_force_N")) << k;
     EXPECT_EQ(rep.num(m, "peer_position_m"), sim.num(k, "slave_sensed_m")) << k;

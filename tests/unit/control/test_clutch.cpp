@@ -48,7 +48,8 @@ constexpr double kN = kFade_s / kT;
   return p;
 }
 
-// The test's own filtered backward difference (DESIGN §2), at rest on the first sample.
+// The test's own filtered backward difference (docs/architecture.md §2.4), at rest on the
+// first sample.
 [[nodiscard]] std::vector<double> filtered_velocity(const std::vector<double>& x, double fc) {
   const double a = 1.0 - std::exp(-2.0 * std::numbers::pi * fc * kT);
   std::vector<double> v(x.size(), 0.0);

@@ -1,7 +1,7 @@
-// RT safety (DESIGN §4): the control steps make no allocation. This binary interposes the C
-// allocator itself (an operator new counter would miss C allocations, and libstdc++'s
-// operator new ends in malloc anyway): malloc & co forward to glibc's __libc_* entry points
-// and count calls while a window is open (tests/support/alloc_counter.hpp). AddressSanitizer
+// RT safety (docs/architecture.md §4.3): the control steps make no allocation. This binary
+// interposes the C allocator itself (an operator new counter would miss C allocations, and
+// libstdc++'s operator new ends in malloc anyway): malloc & co forward to glibc's __libc_* entry
+// points and count calls while a window is open (tests/support/alloc_counter.hpp). AddressSanitizer
 // replaces malloc itself, so the sanitizer build leaves this binary out.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// The Vlachos-Papadopoulos force loop (DESIGN §2):
+// The Vlachos-Papadopoulos force loop (docs/architecture.md §2.8):
 //   F_in = F_des + K_p (F_des - F_avg) + K_i I,  I(k) = I(k-1) + T (F_des - F_avg)(k),
 // F_avg the mean of the last N sensor samples. Expected values by hand.
 #include <gtest/gtest.h>

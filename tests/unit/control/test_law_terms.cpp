@@ -1,4 +1,5 @@
-// Each term of the three-channel law alone against DESIGN §2 with hand-picked numbers:
+// Each term of the three-channel law alone, with hand-picked numbers, against
+// docs/architecture.md §2.3:
 //   F_am = beta [K_pm (x_m - x_s/alpha) + K_dm (v_m - v_s/alpha) + K_fm F_e] + K_vm v_m + F_mVF
 //   F_as = K_ps (alpha x_m - x_s) + K_ds (alpha v_m - v_s) - K_vs v_s - F_sVF
 // The master plant is pushed by -F_am, the slave plant by +F_as. T = 1 ms throughout; a

@@ -1,7 +1,8 @@
 // The law, inside both fixtures with no limit active, is the stability engine's linear model
-// (common/stability/discrete_model.cpp, DESIGN §2 eqs. 26-29). The expected forces are written
-// here the way the engine's realisation forms them: fixtures lumped into the position gains,
-// and ONE filtered differentiator per side applied to the combined velocity signal
+// (common/stability/discrete_model.cpp, docs/architecture.md §2.5: the paper's eqs. 26-29). The
+// expected forces are written here the way the engine's realisation forms them: fixtures lumped
+// into the position gains, and ONE filtered differentiator per side applied to the combined
+// velocity signal
 //   e_m = (beta K_dm + K_vm) x_m - (beta K_dm / alpha) x_s
 //   e_s = -(K_ds + K_vs) x_s + alpha K_ds x_m(k - d)
 // (the engine's round-trip delay d sits on the master -> slave path), whereas the law filters

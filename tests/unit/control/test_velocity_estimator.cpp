@@ -1,4 +1,4 @@
-// Backward difference and first-order low-pass against closed forms (DESIGN §2).
+// Backward difference and first-order low-pass against closed forms (docs/architecture.md §2.4).
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,6 +1,6 @@
-// The RT thread of a real node loop allocates nothing (issue 4 "Loop", DESIGN §4): a master
-// and a slave NodeApp in this process, linked over ZeroMQ on loopback, engaged with the human
-// pushing into tissue; the allocator is interposed and the calls made by the master's loop
+// The RT thread of a real node loop allocates nothing (issue 4 "Loop", docs/architecture.md §4.3):
+// a master and a slave NodeApp in this process, linked over ZeroMQ on loopback, engaged with the
+// human pushing into tissue; the allocator is interposed and the calls made by the master's loop
 // thread are counted over 10 000 of its cycles. The sockets, protobuf and telemetry threads
 // allocate freely meanwhile: they are not counted.
 #include <gtest/gtest.h>

@@ -1,6 +1,6 @@
-// read/write/advance of the simulated device never allocate (DESIGN §4): malloc, calloc,
-// realloc and free are interposed (an operator-new counter would miss C allocations) and counted
-// over 10 000 cycles. Sanitizer builds replace the allocator themselves, so they leave this
+// read/write/advance of the simulated device never allocate (docs/architecture.md §4.3): malloc,
+// calloc, realloc and free are interposed (an operator-new counter would miss C allocations) and
+// counted over 10 000 cycles. Sanitizer builds replace the allocator themselves, so they leave this
 // binary out.
 #include <gtest/gtest.h>
 

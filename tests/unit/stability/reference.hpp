@@ -93,8 +93,8 @@ inline std::pair<Real, Real> velocity_filter(const LoopSpec& s) {
   return {r, 1 - r};
 }
 
-// Characteristic polynomial of the bilateral loop (DESIGN §2): with V(z) = a(z-1)/(T(z-r)),
-// [D_m(z-r) + N_m P_mm] z^d [D_s(z-r) + N_s Q_ss] - N_m P_ms N_s Q_sm.
+// Characteristic polynomial of the bilateral loop (docs/architecture.md §2.4-2.5): with
+// V(z) = a(z-1)/(T(z-r)), [D_m(z-r) + N_m P_mm] z^d [D_s(z-r) + N_s Q_ss] - N_m P_ms N_s Q_sm.
 inline Poly bilateral_polynomial(const LoopSpec& s) {
   const Real t(s.t);
   const auto [r, a] = velocity_filter(s);

@@ -1,5 +1,5 @@
-// The engine's model against the independent transfer-function reference, and the structural
-// facts of DESIGN §2 (decoupling, structural zeros, alpha drops out, marginal modes).
+// The engine's model against the independent transfer-function reference, and the structural facts
+// of docs/architecture.md §2.5-2.7 (decoupling, structural zeros, alpha drops out, marginal modes).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -104,8 +104,8 @@ TEST(Structure, RandomLoopsMatchTheTransferFunctionReference) {
     const Spectrum got =
         ev.spectrum(0, p.master_fixture.stiffness_N_per_m, p.slave_fixture.stiffness_N_per_m, true);
     const auto want = reference::roots(reference::bilateral_polynomial(spec_of(p)));
-    // The counts agree too: 6 + d modes (DESIGN: the filtered differentiator is first order
-    // like the plain one), as many as the reference polynomial's degree.
+    // The counts agree too: 6 + d modes (docs/architecture.md §2.7: the filtered differentiator is
+    // first order like the plain one), as many as the reference polynomial's degree.
     expect_same_spectrum(got, want, 1e-8, "trial " + std::to_string(trial));
   }
 }
@@ -180,7 +180,7 @@ TEST(Structure, EigenvaluesAt10MicrosecondsAndStiffWallWithin1e9) {
 }
 
 TEST(Structure, PositionScaleDropsOutForceScaleDoesNot) {
-  // DESIGN §2: alpha only rescales slave coordinates; beta changes the loop gain.
+  // docs/architecture.md §2.7: alpha only rescales slave coordinates; beta changes the loop gain.
   TeleopParams p = bilateral(1000.0);
   p.slave_fixture.stiffness_N_per_m = 2000.0;
   p.velocity_cutoff_hz = 200.0;

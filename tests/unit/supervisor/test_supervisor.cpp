@@ -71,7 +71,7 @@ TEST(StabilityGuard, AGrowingRoundTripLowersTheLimitAndTheFallbackStaysBelowIt) 
   const double limit0 = *guard.assess(in).max_slave_N_per_m;
   in.round_trip_samples = 3;
   const double limit3 = *guard.assess(in).max_slave_N_per_m;
-  EXPECT_LT(limit3, limit0);  // delay lowers the limit (DESIGN §2)
+  EXPECT_LT(limit3, limit0);  // delay lowers the limit (docs/architecture.md §2.5)
   const double lowered = guard.lowered_stiffness(in, true, 0.5);
   EXPECT_LE(lowered, 0.5 * limit3 + 1e-9);
   EXPECT_LE(lowered, 1500.0 + 1e-9);
