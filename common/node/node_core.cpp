@@ -67,6 +67,8 @@ void NodeCore::apply_retune(std::chrono::nanoseconds now, std::uint64_t master_s
     ramp_from_ = active_;
     ramp_start_ = now;
     ramp_length_ = pending_.ramp;
+    // The ramp's own target: a change posted while it runs waits for its own sequence.
+    ramp_to_ = pending_;
     active_.change_id = pending_.id;
     // The agreed sequence (the slave may first see a later master state than that one).
     active_.applied_at_master_sequence = pending_.apply_at_master_sequence;
@@ -79,16 +81,16 @@ void NodeCore::apply_retune(std::chrono::nanoseconds now, std::uint64_t master_s
           : std::clamp(static_cast<double>((now - ramp_start_).count()) / length, 0.0, 1.0);
   auto lerp = [w](double a, double b) { return a + w * (b - a); };
   const Gains& a = ramp_from_.gains;
-  const Gains& b = pending_.gains;
+  const Gains& b = ramp_to_.gains;
   active_.gains =
       Gains{lerp(a.kpm, b.kpm), lerp(a.kps, b.kps), lerp(a.kdm, b.kdm), lerp(a.kds, b.kds),
             lerp(a.kvm, b.kvm), lerp(a.kvs, b.kvs), lerp(a.kfm, b.kfm)};
   active_.master_fixture = FixtureParams{
-      lerp(ramp_from_.master_fixture.stiffness_N_per_m, pending_.master_fixture.stiffness_N_per_m),
-      pending_.master_fixture.position_m};
+      lerp(ramp_from_.master_fixture.stiffness_N_per_m, ramp_to_.master_fixture.stiffness_N_per_m),
+      ramp_to_.master_fixture.position_m};
   active_.slave_fixture = FixtureParams{
-      lerp(ramp_from_.slave_fixture.stiffness_N_per_m, pending_.slave_fixture.stiffness_N_per_m),
-      pending_.slave_fixture.position_m};
+      lerp(ramp_from_.slave_fixture.stiffness_N_per_m, ramp_to_.slave_fixture.stiffness_N_per_m),
+      ramp_to_.slave_fixture.position_m};
   active_.ramp_progress = w;
   if (master_law_) master_law_->retune(active_.gains, active_.master_fixture);
   if (slave_law_) slave_law_->retune(active_.gains, active_.slave_fixture);

@@ -279,6 +279,7 @@ class NodeCore {
   bool ramping_{false};
   ActiveLaw active_{};
   ActiveLaw ramp_from_{};
+  Retune ramp_to_{};  // the change being ramped to (pending_ is the next one, waiting)
   std::chrono::nanoseconds ramp_start_{0};
   std::chrono::nanoseconds ramp_length_{0};
 };

@@ -204,14 +204,12 @@ v1::ParameterChangeReply SupervisorCore::apply_change(const ChangeRequest& chang
   audit_.approve(id, ApprovedParameters{d.proposed.gains, d.proposed.master_fixture_N_per_m,
                                         d.proposed.slave_fixture_N_per_m});
   last_sent_change_id_ = id;
-  for (NodeView* n : {&master_, &slave_}) {
-    const auto r = ports_.command(n->side, c);
-    if (!r || !r->ok()) {
-      reply.set_accepted(false);
-      reply.set_reason(fmt::format("refused: {} did not take the change ({})", n->name,
-                                   r ? r->message() : std::string("no reply")));
-      return reply;
-    }
+  if (const Delivery sent = send_to_both(c); !sent.refusal.empty()) {
+    reply.set_accepted(false);
+    // Nobody took it: nothing changed. The master took it and the slave did not: roll back.
+    reply.set_reason("refused: " + sent.refusal +
+                     (sent.master_took ? roll_back(id, sent.refusal) : ""));
+    return reply;
   }
   change_id_ = id;
   live_ = d.proposed;
@@ -220,6 +218,59 @@ v1::ParameterChangeReply SupervisorCore::apply_change(const ChangeRequest& chang
   reply.set_apply_at_master_sequence(at);
   publish_report("parameter change " + std::to_string(id) + ": " + why);
   return reply;
+}
+
+// A RETUNE to the master, then (when the master took it) the slave.
+SupervisorCore::Delivery SupervisorCore::send_to_both(const v1::NodeCommand& c) {
+  Delivery d;
+  for (const NodeView* n : {&master_, &slave_}) {
+    const auto r = ports_.command(n->side, c);
+    // No reply is no proof the node did not take it: counted as taken, to be rolled back.
+    if (n == &master_) d.master_took = !r || r->ok();
+    if (!r || !r->ok()) {
+      d.refusal = fmt::format("{} did not take the change ({})", n->name,
+                              r ? r->message() : std::string("no reply"));
+      return d;
+    }
+  }
+  return d;
+}
+
+// Change `refused_id` reached one node and not the other: the pair must not run two sets of
+// values nobody analysed together. The values in force before go to both under a new change
+// number (the refused change, still waiting for its sequence or ramping, is replaced); if that
+// fails too, both nodes are e-stopped. Returns what was done, for the refusal's reason.
+std::string SupervisorCore::roll_back(std::uint64_t refused_id, const std::string& refusal) {
+  const std::uint64_t id = last_sent_change_id_ + 1;
+  const std::uint64_t at =
+      master_sequence() + static_cast<std::uint64_t>(std::lround(0.2 * params_.sample_rate_hz));
+  v1::NodeCommand c;
+  c.set_kind(v1::NodeCommand::RETUNE);
+  *c.mutable_update() = make_update(live_, id, at);
+  audit_.approve(id, ApprovedParameters{live_.gains, live_.master_fixture_N_per_m,
+                                        live_.slave_fixture_N_per_m});
+  last_sent_change_id_ = id;
+  const std::string again = send_to_both(c).refusal;
+  if (again.empty()) {
+    change_id_ = id;
+    alarm(v1::Alarm::WARNING, "parameter_change", "system",
+          fmt::format("change {} refused: {}", refused_id, refusal),
+          {{"change_id", static_cast<double>(refused_id), ""}},
+          fmt::format("rolled back on both nodes (change {})", id));
+    return fmt::format("; rolled back on both nodes as change {}", id);
+  }
+  const auto rm = command(Side::kMaster, v1::NodeCommand::ESTOP);
+  const auto rs = command(Side::kSlave, v1::NodeCommand::ESTOP);
+  const std::string action =
+      fmt::format("e-stopped both nodes (master {}, slave {})",
+                  rm ? v1::NodeMode_Name(rm->mode()) : std::string("NO REPLY"),
+                  rs ? v1::NodeMode_Name(rs->mode()) : std::string("NO REPLY"));
+  alarm(v1::Alarm::CRITICAL, "parameter_change", "system",
+        fmt::format("change {} refused ({}) and its roll-back too ({}): the nodes may run "
+                    "different parameters",
+                    refused_id, refusal, again),
+        {{"change_id", static_cast<double>(refused_id), ""}}, action);
+  return "; the roll-back failed too (" + again + "): " + action;
 }
 
 void SupervisorCore::on_change_request(const v1::ParameterChangeRequest& c,

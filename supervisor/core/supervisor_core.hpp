@@ -153,6 +153,12 @@ class SupervisorCore {
                                         const std::string& why);
   [[nodiscard]] v1::ParameterUpdate make_update(const LiveInputs& proposed, std::uint64_t id,
                                                 std::uint64_t at) const;
+  struct Delivery {
+    std::string refusal;      // "" when both took it, else who did not and why
+    bool master_took{false};  // or may have: it did not answer
+  };
+  [[nodiscard]] Delivery send_to_both(const v1::NodeCommand& c);
+  std::string roll_back(std::uint64_t refused_id, const std::string& refusal);
   void on_change_request(const v1::ParameterChangeRequest& c, v1::SupervisorReply& reply);
   void audit_parameters(NodeView& n, const v1::Telemetry& t);
   void adopt_parameters_in_force(const v1::Telemetry& t);

@@ -640,11 +640,16 @@ TEST(HostileAuthority, ChangeNumberTakenAheadOfTheSupervisorIsCaught) {
   const CliResult refused = teleopctl("set slave.fixture.stiffness_N_per_m=200" + sup);
   EXPECT_NE(refused.exit_code, 0) << refused.out;
   EXPECT_NE(refused.out.find("not newer than change 1"), std::string::npos) << refused.out;
+  // The master had taken that change (1): since issue 16's review the supervisor rolls it back
+  // on both nodes as change 2, the approved values under a number the slave takes.
+  EXPECT_NE(refused.out.find("rolled back on both nodes as change 2"), std::string::npos)
+      << refused.out;
   const CliResult taken = teleopctl("set slave.fixture.stiffness_N_per_m=200" + sup);
   ASSERT_EQ(taken.exit_code, 0) << taken.out << sys.logs();
-  // Approved values back in force on the slave: the audit is satisfied again.
+  // Approved values back in force on the slave: the audit is satisfied again (change 2, the
+  // roll-back, and 3, the second set, both carry them).
   EXPECT_TRUE(sys.st().wait_for([](const v1::Telemetry& t) {
-    return t.active().change_id() == 2 && t.active().ramp_progress() >= 1.0 &&
+    return t.active().change_id() == 3 && t.active().ramp_progress() >= 1.0 &&
            t.active().slave_fixture_stiffness_n_per_m() == kFileSlaveFixture;
   })) << sys.logs();
 }

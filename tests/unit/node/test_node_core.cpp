@@ -282,6 +282,58 @@ TEST(NodeCore, TheRampIsLinearFromTheValueInForce) {
   for (int i = 0; i <= 10; ++i) EXPECT_NEAR(k[static_cast<std::size_t>(i)], 100.0 * i, 1e-9) << i;
 }
 
+// Issue 16 review: a second change posted while the first one ramps waits for its own agreed
+// sequence; the ramp in progress keeps its target. (The node had made the newest change the
+// running ramp's target at once: each node switched when its own command thread posted it,
+// so master and slave ran different values until the ramp ended.)
+TEST(NodeCore, ASecondChangePostedDuringARampWaitsForItsOwnSequence) {
+  Pair p;
+  p.engage();
+  Retune first;
+  first.id = 3;
+  first.gains = settings(Role::kSlave).law.gains;
+  first.slave_fixture = FixtureParams{1000.0, 0.004};
+  first.apply_at_master_sequence = 0;  // at once
+  first.ramp = 10ms;
+  p.slave.post_retune(first);
+  std::vector<double> k;
+  ActiveLaw a;
+  for (int i = 0; i < 5; ++i) {
+    p.cycle();
+    // Written while a change ramps; the last value holds after.
+    ActiveLaw now_in_force;
+    if (p.slave.active_out().read(now_in_force)) a = now_in_force;
+    k.push_back(a.slave_fixture.stiffness_N_per_m);
+  }
+  // Half way (400 N/m after the 5th cycle), the second change: 200 N/m, 20 cycles on.
+  const std::uint64_t at = p.master_records.back().sequence + 20;
+  Retune second = first;
+  second.id = 4;
+  second.slave_fixture = FixtureParams{200.0, 0.004};
+  second.apply_at_master_sequence = at;
+  p.slave.post_retune(second);
+  for (int i = 0; i < 40; ++i) {
+    p.cycle();
+    // Written while a change ramps; the last value holds after.
+    ActiveLaw now_in_force;
+    if (p.slave.active_out().read(now_in_force)) a = now_in_force;
+    k.push_back(a.slave_fixture.stiffness_N_per_m);
+  }
+  // The first ramp goes on to 1000 N/m, 100 N/m per cycle, as if nothing had come.
+  for (int i = 0; i <= 10; ++i) EXPECT_NEAR(k[static_cast<std::size_t>(i)], 100.0 * i, 1e-9) << i;
+  // Then change 4 from the master sequence `at`, down to 200 N/m over 10 cycles.
+  std::uint64_t applied_at = 0;
+  for (const CycleRecord& c : p.slave_records) {
+    if (c.parameter_change_id == 4) {
+      applied_at = c.master_sequence;
+      break;
+    }
+  }
+  EXPECT_EQ(applied_at, at);
+  EXPECT_EQ(a.change_id, 4u);
+  EXPECT_DOUBLE_EQ(a.slave_fixture.stiffness_N_per_m, 200.0);
+}
+
 // README "Before engage" (issue 14 finding 3): arm and engage need the peer's fingerprint,
 // equal to this node's, the same parameter change on both, and this node's own check passed.
 NodeSettings slave_with(std::uint64_t fingerprint) {

@@ -123,8 +123,10 @@ class FakeNodes final : public SupervisorPorts {
     v1::NodeCommandReply r;
     r.set_ok(true);
     if (c.kind() == v1::NodeCommand::RETUNE) {
-      if (refuse_retunes > 0) {
-        --refuse_retunes;
+      int& refusals = side == Side::kSlave && slave_refuses_retunes > 0 ? slave_refuses_retunes
+                                                                        : refuse_retunes;
+      if (refusals > 0) {
+        --refusals;
         r.set_ok(false);
         r.set_message("busy");
       } else {
@@ -182,6 +184,9 @@ class FakeNodes final : public SupervisorPorts {
     }
     return out;
   }
+  [[nodiscard]] const v1::ActiveParameters& active(Side side) const {
+    return side == Side::kMaster ? master_.active : slave_.active;
+  }
   [[nodiscard]] std::vector<Sent> sent_of(v1::NodeCommand::Kind k) const {
     std::vector<Sent> out;
     for (const Sent& s : sent) {
@@ -195,7 +200,8 @@ class FakeNodes final : public SupervisorPorts {
   std::vector<v1::Alarm> alarms;
   std::vector<v1::StabilityReport> reports;
   int statuses{0};
-  int refuse_retunes{0};
+  int refuse_retunes{0};         // the next RETUNEs refused, whichever node gets them
+  int slave_refuses_retunes{0};  // the next RETUNEs the slave refuses
   std::int64_t round_trip_p99_ns{500'000};
   std::int64_t now_ns{0};
 
@@ -390,6 +396,51 @@ TEST(SupervisorCore, AParameterInForceThatWasNotApprovedEStopsBothNodes) {
   EXPECT_EQ(estops[0].time_ns, u[0].time_ns());
   EXPECT_NE(u[0].action().find("e-stopped both nodes (master SAFE, slave SAFE)"), std::string::npos)
       << u[0].action();
+}
+
+// Issue 16 review: a change the master took and the slave refused left the master on the new
+// values and the slave on the old ones, a pair nobody analysed. It is rolled back on both
+// (previous values, a new change number); if that fails too, both nodes are e-stopped.
+TEST(SupervisorCore, AChangeOneNodeRefusesIsRolledBackOnBoth) {
+  const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
+  FakeNodes nodes(c);
+  SupervisorCore core(c, {}, nodes);
+  core.start(kT0);
+  nodes.run(core, kT0, kT0 + 300 * kMs, still);
+  nodes.slave_refuses_retunes = 1;
+  v1::SupervisorRequest change;
+  change.mutable_change()->set_slave_fixture_stiffness_n_per_m(1000.0);
+  const v1::SupervisorReply r = core.on_request(change, "", kT0 + 300 * kMs);
+  EXPECT_FALSE(r.change().accepted());
+  EXPECT_NE(r.change().reason().find("slave did not take the change"), std::string::npos)
+      << r.change().reason();
+  EXPECT_NE(r.change().reason().find("rolled back"), std::string::npos) << r.change().reason();
+  // Both nodes end on the values in force before, under one (new) change number.
+  for (const Side side : {Side::kMaster, Side::kSlave}) {
+    EXPECT_EQ(nodes.active(side).slave_fixture_stiffness_n_per_m(), 1500.0);
+  }
+  EXPECT_EQ(nodes.active(Side::kMaster).change_id(), nodes.active(Side::kSlave).change_id());
+  EXPECT_EQ(core.live().slave_fixture_N_per_m, 1500.0);
+  nodes.run(core, kT0 + 300 * kMs, kT0 + 600 * kMs, still);
+  EXPECT_TRUE(nodes.sent_of(v1::NodeCommand::ESTOP).empty());
+  EXPECT_TRUE(nodes.alarms_of("unapproved_parameters").empty());
+  // The next change goes through and follows both numbers.
+  const v1::SupervisorReply next = core.on_request(change, "", kT0 + 600 * kMs);
+  EXPECT_TRUE(next.change().accepted()) << next.change().reason();
+  EXPECT_GT(next.change().change_id(),
+            nodes.sent_of(v1::NodeCommand::RETUNE)[2].command.update().change_id());
+
+  // The slave refuses the change and the rollback: both e-stopped, CRITICAL.
+  nodes.slave_refuses_retunes = 2;
+  change.mutable_change()->set_slave_fixture_stiffness_n_per_m(800.0);
+  const v1::SupervisorReply bad = core.on_request(change, "", kT0 + 700 * kMs);
+  EXPECT_FALSE(bad.change().accepted());
+  EXPECT_EQ(nodes.sent_of(v1::NodeCommand::ESTOP).size(), 2u);
+  const auto crit = nodes.alarms_of("parameter_change");
+  ASSERT_FALSE(crit.empty());
+  EXPECT_EQ(crit.back().severity(), v1::Alarm::CRITICAL);
+  EXPECT_NE(crit.back().action().find("e-stopped both nodes"), std::string::npos)
+      << crit.back().action();
 }
 
 TEST(SupervisorCore, AReadOnlyKeyMayAskForStatusAndEStopButNotForAChange) {
