@@ -23,16 +23,6 @@ bool peer_down(int wire) noexcept {
   return wire == wire_mode(Mode::kSafe) || wire == wire_mode(Mode::kFault);
 }
 
-std::uint32_t law_flags(const control::CommandFlags& f) noexcept {
-  std::uint32_t bits = 0;
-  if (f.saturated) bits |= LawFlagBits::kSaturated;
-  if (f.rate_limited) bits |= LawFlagBits::kRateLimited;
-  if (f.reference_limited) bits |= LawFlagBits::kReferenceLimited;
-  if (f.limit_violation) bits |= LawFlagBits::kLimitViolation;
-  if (f.input_fault) bits |= LawFlagBits::kInputFault;
-  return bits;
-}
-
 }  // namespace
 
 NodeCore::NodeCore(const NodeSettings& settings, device::HapticDevice& device)
@@ -42,13 +32,7 @@ NodeCore::NodeCore(const NodeSettings& settings, device::HapticDevice& device)
       velocity_(std::chrono::duration<double>(settings.period).count(),
                 settings.law.velocity_cutoff_hz) {
   if (settings_.period.count() <= 0) throw std::invalid_argument("node period must be > 0");
-  if (settings_.role == Role::kMaster) {
-    master_law_.emplace(settings_.law);
-  } else if (settings_.role == Role::kSlave) {
-    slave_law_.emplace(settings_.law);
-  } else {
-    throw std::invalid_argument("node role must be master or slave");
-  }
+  side_ = NodeSide::make(settings_);
   active_.gains = settings_.law.gains;
   active_.master_fixture = settings_.law.master_fixture;
   active_.slave_fixture = settings_.law.slave_fixture;
@@ -92,8 +76,7 @@ void NodeCore::apply_retune(std::chrono::nanoseconds now, std::uint64_t master_s
       lerp(ramp_from_.slave_fixture.stiffness_N_per_m, ramp_to_.slave_fixture.stiffness_N_per_m),
       ramp_to_.slave_fixture.position_m};
   active_.ramp_progress = w;
-  if (master_law_) master_law_->retune(active_.gains, active_.master_fixture);
-  if (slave_law_) slave_law_->retune(active_.gains, active_.slave_fixture);
+  side_->retune(active_);
   if (w >= 1.0) ramping_ = false;
   active_out_.write(active_);
 }
@@ -127,66 +110,6 @@ bool NodeCore::post_command(Command command) noexcept {
   return true;
 }
 
-double NodeCore::master_command(Mode mode, double weight, double position_m,
-                                double velocity_m_per_s, bool coupled,
-                                std::uint32_t& flags) noexcept {
-  const double alpha = settings_.law.scaling.position;
-  const AlignmentParams& a = settings_.alignment;
-  auto centring = [&] {
-    if (!have_peer_) return 0.0;
-    // Toward the slave's position in master coordinates; the device is pushed along +x.
-    const double target_m = peer_.state.position_m / alpha;
-    const double f = -a.centring_stiffness_N_per_m * (position_m - target_m) -
-                     a.centring_damping_Ns_per_m * velocity_m_per_s;
-    return std::clamp(f, -a.centring_max_force_N, a.centring_max_force_N);
-  };
-  switch (mode) {
-    case Mode::kAligning:
-      return centring();
-    case Mode::kEngaged:
-    case Mode::kClutched: {
-      master_law_->set_clutch(mode == Mode::kClutched);
-      const control::PeerState slave{peer_.state.position_m, peer_.state.velocity_m_per_s,
-                                     peer_.state.force_N, false, coupled};
-      const control::Command c = master_law_->step(position_m, slave);
-      flags |= law_flags(c.flags);
-      // The master's actuator is pushed by -F_am (docs/architecture.md §2.1).
-      return weight * -c.force_N + (1.0 - weight) * centring();
-    }
-    case Mode::kSafe:
-      return safe_from_N_ * weight;
-    case Mode::kDisarmed:
-    case Mode::kArmed:
-    case Mode::kFault:
-      break;
-  }
-  return 0.0;
-}
-
-double NodeCore::slave_command(Mode mode, double position_m, double force_N, bool coupled,
-                               std::uint32_t& flags) noexcept {
-  switch (mode) {
-    case Mode::kAligning:
-    case Mode::kEngaged:
-    case Mode::kClutched:
-    case Mode::kSafe: {
-      // Not coupled (aligning, safe, or the master not engaged yet): the law holds the slave
-      // where it is with its own spring and damping.
-      const bool follow = coupled && (mode == Mode::kEngaged || mode == Mode::kClutched);
-      const control::PeerState master{peer_.state.position_m, peer_.state.velocity_m_per_s, 0.0,
-                                      peer_.state.clutched, follow};
-      const control::Command c = slave_law_->step(position_m, force_N, master);
-      flags |= law_flags(c.flags);
-      return c.force_N;
-    }
-    case Mode::kDisarmed:
-    case Mode::kArmed:
-    case Mode::kFault:
-      break;
-  }
-  return 0.0;
-}
-
 void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) noexcept {
   const std::chrono::nanoseconds clock =
       timing != nullptr && timing->cycles() > 0 ? timing->last_woke() : now;
@@ -196,127 +119,22 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
 void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock,
                     const rt::LoopTiming* timing) noexcept {
   ++sequence_;
-  // An own stall: the time since the previous cycle's clock beyond the peer timeout, or a
-  // burst of overruns (lateness beyond one period accumulating faster than half the time
-  // that passes drains it).
-  const char* own_stall = nullptr;
-  if (have_clock_) {
-    const std::int64_t gap_ns = clock.count() - last_clock_ns_;
-    const std::int64_t period_ns = settings_.period.count();
-    const std::int64_t timeout_ns = settings_.machine.peer_timeout.count();
-    overrun_debt_ns_ =
-        std::max<std::int64_t>(0, overrun_debt_ns_ + std::max<std::int64_t>(0, gap_ns - period_ns) -
-                                      std::max<std::int64_t>(0, gap_ns) / 2);
-    if (gap_ns > timeout_ns) {
-      own_stall = "own loop stalled past the peer timeout";
-    } else if (overrun_debt_ns_ > timeout_ns) {
-      own_stall = "own loop overran in a burst";
-    }
-  }
-  if (own_stall != nullptr) overrun_debt_ns_ = 0;
-  have_clock_ = true;
-  last_clock_ns_ = clock.count();
-  const bool master = settings_.role == Role::kMaster;
-  const double alpha = settings_.law.scaling.position;
+  const char* own_stall = check_own_stall(clock);
 
   device::Sample sample{};
   const device::Status read = device_.read(sample);
   const bool device_fault = !read.ok() || (sample.flags & device::SampleFlags::kFault) != 0;
   const double velocity_m_per_s = velocity_.step(sample.position_m);
-
-  // The round trip's window moves on even while no echo comes back.
-  round_trip_window_.advance(now.count());
-  PeerSample incoming{};
-  if (peer_in_.read(incoming)) {
-    if (have_peer_ && incoming.state.session_id != peer_.state.session_id) {
-      ++peer_restarts_;
-      peer_restarted_ = true;
-    }
-    peer_ = incoming;
-    have_peer_ = true;
-    peer_fingerprint_.store(incoming.state.config_fingerprint, std::memory_order_release);
-    peer_change_id_.store(incoming.state.parameter_change_id, std::memory_order_release);
-    if (incoming.state.last_peer_sequence != 0) {
-      const auto rtt = round_trip_.echoed(incoming.state.last_peer_sequence,
-                                          std::chrono::nanoseconds(incoming.state.peer_age_ns),
-                                          std::chrono::nanoseconds(incoming.arrival_ns));
-      if (rtt && rtt->count() > 0) {
-        round_trip_ns_ = rtt->count();
-        round_trip_window_.add(now.count(), rtt->count());
-      }
-    }
-  }
+  receive_peer(now);
   // Against the clock: after a stall the deadline is as old as the stall.
   const std::int64_t peer_age_ns =
       have_peer_ ? std::max<std::int64_t>(0, clock.count() - peer_.arrival_ns) : 0;
 
-  Command command = Command::kNone;
-  if (const std::optional<Command> c = commands_in_.try_pop()) {
-    command = *c;
-    commands_applied_.fetch_add(1, std::memory_order_acq_rel);
-  }
-  // The clutch is the master's: the slave holds by itself while the master indexes.
-  if (!master && (command == Command::kClutch || command == Command::kUnclutch)) {
-    command = Command::kNone;
-  }
-
   const double own_m = sample.position_m;
-  const double gap_m = have_peer_ ? (master ? alpha * own_m - peer_.state.position_m
-                                            : alpha * peer_.state.position_m - own_m)
-                                  : 0.0;
-  CycleInputs in;
-  in.now = now;
-  in.command = command;
-  in.peer_seen = have_peer_;
-  in.peer_age = std::chrono::nanoseconds(peer_age_ns);
-  in.aligned = have_peer_ && std::abs(gap_m) <= settings_.alignment.tolerance_m &&
-               peer_coupling(peer_.state.mode);
-  in.device_fault = device_fault;
-  in.law_fault = master ? master_law_->faulted() : slave_law_->faulted();
-  in.peer_failed = have_peer_ && (peer_down(peer_.state.mode) || peer_restarted_);
-  in.peer_disengaged = have_peer_ && !peer_coupling(peer_.state.mode) && !in.peer_failed;
-  in.own_stall = own_stall;
-  in.coupling_refusal = coupling_refusal();
-  const CycleOutputs out = machine_.step(in);
-  if (out.refused) {
-    last_refusal_.store(out.reason, std::memory_order_release);
-    coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
-  }
+  const double gap_m = have_peer_ ? side_->alignment_gap_m(own_m, peer_.state.position_m) : 0.0;
+  const CycleOutputs out = decide(now, next_command(), peer_age_ns, gap_m, device_fault, own_stall);
   const Mode mode = out.mode;
-
-  if (mode != last_mode_) {
-    const bool unclutched = mode == Mode::kEngaged && last_mode_ == Mode::kClutched;
-    if (mode == Mode::kAligning || (mode == Mode::kEngaged && !unclutched)) {
-      // A fresh law at each stage: no offset, no stale filter state, the coupling fading in.
-      // Not on unclutch: the law absorbs the operator's indexing offset (master_law.hpp).
-      if (master) {
-        master_law_->reset(own_m);
-      } else {
-        slave_law_->reset(own_m);
-      }
-    }
-    if (mode == Mode::kAligning) peer_restarted_ = false;
-    const bool coupled_mode = mode == Mode::kEngaged || mode == Mode::kClutched;
-    const bool was_coupled = last_mode_ == Mode::kEngaged || last_mode_ == Mode::kClutched;
-    if (mode == Mode::kEngaged && !was_coupled) {
-      // The scene starts at the first engagement; the (simulated) operator takes it up again
-      // at each later one.
-      device_.on_engaged();
-    }
-    if (was_coupled && !coupled_mode) device_.on_disengaged();
-    if (mode == Mode::kSafe) {
-      safe_since_ = clock;
-      safe_from_N_ = last_command_N_;
-    }
-    if (mode == Mode::kFault || mode == Mode::kDisarmed) {
-      if (master) {
-        master_law_->reset(own_m);
-      } else {
-        slave_law_->reset(own_m);
-      }
-    }
-    last_mode_ = mode;
-  }
+  if (mode != last_mode_) enter(mode, own_m, clock);
   // A restart matters only to a coupling that was in progress.
   if (mode == Mode::kDisarmed || mode == Mode::kArmed) peer_restarted_ = false;
 
@@ -327,53 +145,29 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
     weight = ramp <= 0.0 ? 0.0 : std::clamp(1.0 - since / ramp, 0.0, 1.0);
   }
   const std::uint64_t master_sequence =
-      master ? sequence_ : (have_peer_ ? peer_.state.sequence : 0);
+      side_->master_sequence(sequence_, have_peer_, peer_.state.sequence);
   apply_retune(now, master_sequence);
-  const bool coupled = have_peer_ && peer_coupled(peer_.state.mode) && !device_fault;
   std::uint32_t flags = sample.flags;
   double force_N = 0.0;
   if (!device_fault) {
-    force_N = master ? master_command(mode, weight, own_m, velocity_m_per_s, coupled, flags)
-                     : slave_command(mode, own_m, sample.force_N, coupled, flags);
+    SideCycle c;
+    c.mode = mode;
+    c.weight = weight;
+    c.position_m = own_m;
+    c.velocity_m_per_s = velocity_m_per_s;
+    c.measured_force_N = sample.force_N;
+    c.coupled = have_peer_ && peer_coupled(peer_.state.mode);
+    c.have_peer = have_peer_;
+    c.peer = &peer_.state;
+    c.safe_from_N = safe_from_N_;
+    force_N = side_->command(c, flags);
   }
   if (!std::isfinite(force_N)) force_N = 0.0;
   (void)device_.write(device::Command{force_N});
   last_command_N_ = force_N;
   (void)device_.tick(settings_.period);
 
-  // Own state to the peer: the master publishes its clutch-corrected position while coupled.
-  transport::NodeStateRecord state;
-  state.session_id = settings_.session_id;
-  state.sequence = sequence_;
-  state.sample_time_ns = now.count();
-  state.last_peer_sequence = have_peer_ ? peer_.state.sequence : 0;
-  state.peer_age_ns = peer_age_ns;
-  state.role = settings_.role;
-  state.mode = wire_mode(mode);
-  state.position_m = own_m;
-  state.velocity_m_per_s = velocity_m_per_s;
-  if (master && (mode == Mode::kEngaged || mode == Mode::kClutched)) {
-    const control::PeerState published = master_law_->peer_state();
-    state.position_m = published.position_m;
-    state.velocity_m_per_s = published.velocity_m_per_s;
-    state.clutched = published.clutched;
-  }
-  state.force_N = master ? 0.0 : sample.force_N;
-  const FixtureParams& fixture = master ? active_.master_fixture : active_.slave_fixture;
-  if (fixture.stiffness_N_per_m > 0.0 && own_m > fixture.position_m) {
-    state.fixture_in_contact = true;
-    state.fixture_penetration_m = own_m - fixture.position_m;
-    state.fixture_force_N = fixture.stiffness_N_per_m * state.fixture_penetration_m;
-  }
-  state.fault_flags = flags;
-  state.config_fingerprint = settings_.config_fingerprint;
-  state.parameter_change_id = active_.change_id;
-  active_change_id_.store(active_.change_id, std::memory_order_release);
-  round_trip_.sent(sequence_, now);
-  state_out_.write(state);
-  published_.fetch_add(1, std::memory_order_release);
-  published_.notify_one();
-
+  publish_state(now, mode, own_m, velocity_m_per_s, sample.force_N, peer_age_ns, flags);
   mode_.store(mode, std::memory_order_release);
   reason_.store(out.reason, std::memory_order_release);
 
@@ -400,6 +194,149 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
   }
   (void)telemetry_out_.try_push(rec);
   if (sequence_ % kStatsEvery == 1) publish_stats(timing, peer_age_ns);
+}
+
+// An own stall: the time since the previous cycle's clock beyond the peer timeout, or a burst
+// of overruns (lateness beyond one period accumulating faster than half the time that passes
+// drains it). nullptr: none.
+const char* NodeCore::check_own_stall(std::chrono::nanoseconds clock) noexcept {
+  const char* own_stall = nullptr;
+  if (have_clock_) {
+    const std::int64_t gap_ns = clock.count() - last_clock_ns_;
+    const std::int64_t period_ns = settings_.period.count();
+    const std::int64_t timeout_ns = settings_.machine.peer_timeout.count();
+    overrun_debt_ns_ =
+        std::max<std::int64_t>(0, overrun_debt_ns_ + std::max<std::int64_t>(0, gap_ns - period_ns) -
+                                      std::max<std::int64_t>(0, gap_ns) / 2);
+    if (gap_ns > timeout_ns) {
+      own_stall = "own loop stalled past the peer timeout";
+    } else if (overrun_debt_ns_ > timeout_ns) {
+      own_stall = "own loop overran in a burst";
+    }
+  }
+  if (own_stall != nullptr) overrun_debt_ns_ = 0;
+  have_clock_ = true;
+  last_clock_ns_ = clock.count();
+  return own_stall;
+}
+
+// The newest peer state from the link thread, and the round trip its echo measures.
+void NodeCore::receive_peer(std::chrono::nanoseconds now) noexcept {
+  // The round trip's window moves on even while no echo comes back.
+  round_trip_window_.advance(now.count());
+  PeerSample incoming{};
+  if (!peer_in_.read(incoming)) return;
+  if (have_peer_ && incoming.state.session_id != peer_.state.session_id) {
+    ++peer_restarts_;
+    peer_restarted_ = true;
+  }
+  peer_ = incoming;
+  have_peer_ = true;
+  peer_fingerprint_.store(incoming.state.config_fingerprint, std::memory_order_release);
+  peer_change_id_.store(incoming.state.parameter_change_id, std::memory_order_release);
+  if (incoming.state.last_peer_sequence == 0) return;
+  const auto rtt = round_trip_.echoed(incoming.state.last_peer_sequence,
+                                      std::chrono::nanoseconds(incoming.state.peer_age_ns),
+                                      std::chrono::nanoseconds(incoming.arrival_ns));
+  if (rtt && rtt->count() > 0) {
+    round_trip_ns_ = rtt->count();
+    round_trip_window_.add(now.count(), rtt->count());
+  }
+}
+
+// The operator's command of this cycle (one per cycle, in order); the clutch only on the side
+// that takes it.
+Command NodeCore::next_command() noexcept {
+  Command command = Command::kNone;
+  if (const std::optional<Command> c = commands_in_.try_pop()) {
+    command = *c;
+    commands_applied_.fetch_add(1, std::memory_order_acq_rel);
+  }
+  if (!side_->takes_clutch() && (command == Command::kClutch || command == Command::kUnclutch)) {
+    command = Command::kNone;
+  }
+  return command;
+}
+
+// The state machine's step on this cycle's inputs.
+CycleOutputs NodeCore::decide(std::chrono::nanoseconds now, Command command,
+                              std::int64_t peer_age_ns, double gap_m, bool device_fault,
+                              const char* own_stall) noexcept {
+  CycleInputs in;
+  in.now = now;
+  in.command = command;
+  in.peer_seen = have_peer_;
+  in.peer_age = std::chrono::nanoseconds(peer_age_ns);
+  in.aligned = have_peer_ && std::abs(gap_m) <= settings_.alignment.tolerance_m &&
+               peer_coupling(peer_.state.mode);
+  in.device_fault = device_fault;
+  in.law_fault = side_->law_faulted();
+  in.peer_failed = have_peer_ && (peer_down(peer_.state.mode) || peer_restarted_);
+  in.peer_disengaged = have_peer_ && !peer_coupling(peer_.state.mode) && !in.peer_failed;
+  in.own_stall = own_stall;
+  in.coupling_refusal = coupling_refusal();
+  const CycleOutputs out = machine_.step(in);
+  if (out.refused) {
+    last_refusal_.store(out.reason, std::memory_order_release);
+    coupling_refusals_.fetch_add(1, std::memory_order_acq_rel);
+  }
+  return out;
+}
+
+// The entry actions of `mode`.
+void NodeCore::enter(Mode mode, double own_m, std::chrono::nanoseconds clock) noexcept {
+  const bool unclutched = mode == Mode::kEngaged && last_mode_ == Mode::kClutched;
+  if (mode == Mode::kAligning || (mode == Mode::kEngaged && !unclutched)) {
+    // A fresh law at each stage: no offset, no stale filter state, the coupling fading in.
+    // Not on unclutch: the law absorbs the operator's indexing offset (master_law.hpp).
+    side_->reset_law(own_m);
+  }
+  if (mode == Mode::kAligning) peer_restarted_ = false;
+  const bool coupled_mode = mode == Mode::kEngaged || mode == Mode::kClutched;
+  const bool was_coupled = last_mode_ == Mode::kEngaged || last_mode_ == Mode::kClutched;
+  if (mode == Mode::kEngaged && !was_coupled) {
+    // The scene starts at the first engagement; the (simulated) operator takes it up again
+    // at each later one.
+    device_.on_engaged();
+  }
+  if (was_coupled && !coupled_mode) device_.on_disengaged();
+  if (mode == Mode::kSafe) {
+    safe_since_ = clock;
+    safe_from_N_ = last_command_N_;
+  }
+  if (mode == Mode::kFault || mode == Mode::kDisarmed) side_->reset_law(own_m);
+  last_mode_ = mode;
+}
+
+// Own state to the peer (the sender thread sends it).
+void NodeCore::publish_state(std::chrono::nanoseconds now, Mode mode, double own_m,
+                             double velocity_m_per_s, double measured_force_N,
+                             std::int64_t peer_age_ns, std::uint32_t flags) noexcept {
+  transport::NodeStateRecord state;
+  state.session_id = settings_.session_id;
+  state.sequence = sequence_;
+  state.sample_time_ns = now.count();
+  state.last_peer_sequence = have_peer_ ? peer_.state.sequence : 0;
+  state.peer_age_ns = peer_age_ns;
+  state.role = settings_.role;
+  state.mode = wire_mode(mode);
+  state.position_m = own_m;
+  state.velocity_m_per_s = velocity_m_per_s;
+  side_->publish(state, mode, measured_force_N);
+  const FixtureParams& fixture = side_->own_fixture(active_);
+  if (fixture.stiffness_N_per_m > 0.0 && own_m > fixture.position_m) {
+    state.fixture_in_contact = true;
+    state.fixture_penetration_m = own_m - fixture.position_m;
+    state.fixture_force_N = fixture.stiffness_N_per_m * state.fixture_penetration_m;
+  }
+  state.fault_flags = flags;
+  state.config_fingerprint = settings_.config_fingerprint;
+  state.parameter_change_id = active_.change_id;
+  active_change_id_.store(active_.change_id, std::memory_order_release);
+  round_trip_.sent(sequence_, now);
+  state_out_.write(state);
+  published_.fetch_add(1, std::memory_order_release);
+  published_.notify_one();
 }
 
 void NodeCore::publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept {

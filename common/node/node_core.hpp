@@ -32,6 +32,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 
@@ -40,6 +41,7 @@
 #include "common/control/slave_law.hpp"
 #include "common/control/velocity_estimator.hpp"
 #include "common/device/haptic_device.hpp"
+#include "common/node/node_side.hpp"
 #include "common/node/node_state_machine.hpp"
 #include "common/rt/latest_value.hpp"
 #include "common/rt/loop_timing.hpp"
@@ -221,11 +223,17 @@ class NodeCore {
   }
 
  private:
-  [[nodiscard]] double master_command(Mode mode, double weight, double position_m,
-                                      double velocity_m_per_s, bool coupled,
-                                      std::uint32_t& flags) noexcept;
-  [[nodiscard]] double slave_command(Mode mode, double position_m, double force_N, bool coupled,
-                                     std::uint32_t& flags) noexcept;
+  // The phases of step(), in order.
+  [[nodiscard]] const char* check_own_stall(std::chrono::nanoseconds clock) noexcept;
+  void receive_peer(std::chrono::nanoseconds now) noexcept;
+  [[nodiscard]] Command next_command() noexcept;
+  [[nodiscard]] CycleOutputs decide(std::chrono::nanoseconds now, Command command,
+                                    std::int64_t peer_age_ns, double gap_m, bool device_fault,
+                                    const char* own_stall) noexcept;
+  void enter(Mode mode, double own_m, std::chrono::nanoseconds clock) noexcept;
+  void publish_state(std::chrono::nanoseconds now, Mode mode, double own_m, double velocity_m_per_s,
+                     double measured_force_N, std::int64_t peer_age_ns,
+                     std::uint32_t flags) noexcept;
   void publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept;
   void apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept;
   // Why arm and engage are refused now (nullptr: permitted). RT-safe.
@@ -234,8 +242,7 @@ class NodeCore {
   NodeSettings settings_;
   device::HapticDevice& device_;
   NodeStateMachine machine_;
-  std::optional<control::MasterLaw> master_law_{};
-  std::optional<control::SlaveLaw> slave_law_{};
+  std::unique_ptr<NodeSide> side_;  // what the role decides (node_side.hpp)
   control::VelocityEstimator velocity_;
   transport::RoundTripEstimator round_trip_{};
   // The round trip over the last 9-10 s (what the supervisor's model takes).
