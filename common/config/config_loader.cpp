@@ -14,6 +14,7 @@
 
 #include "common/config/parameter_space.hpp"
 #include "common/config/text_format.hpp"
+#include "common/core/defaults.hpp"
 
 namespace teleop::config {
 namespace {
@@ -24,8 +25,6 @@ using text_format::Problems;
 
 constexpr int kMaxDelaySamples = 1000;
 constexpr int kMaxPointsPerAxis = 100;
-constexpr int kDefaultPointsPerAxis = 4;
-constexpr int kDefaultSensorAverageSamples = 50;
 
 // ---------------------------------------------------------------------------------------------
 // Validation
@@ -314,7 +313,7 @@ TeleopParams to_teleop_params(const LoadedConfig& config) {
     params.human.band.force_levels_N.assign(band.force_levels_n().begin(),
                                             band.force_levels_n().end());
     params.human.band.points_per_axis =
-        band.has_points_per_axis() ? band.points_per_axis() : kDefaultPointsPerAxis;
+        band.has_points_per_axis() ? band.points_per_axis() : defaults::kBandPointsPerAxis;
     params.human.band.mass_kg = to_band(band.mass_kg());
     params.human.band.damping_Ns_per_m = to_band(band.damping_ns_per_m());
     params.human.band.stiffness_N_per_m = to_band(band.stiffness_n_per_m());
@@ -344,8 +343,9 @@ ForceLoopParams to_force_loop_params(const LoadedConfig& config) {
   params.sample_rate_hz = loop.sample_rate_hz();
   params.environment_stiffness_N_per_m = loop.environment_stiffness_n_per_m();
   params.environment_damping_Ns_per_m = loop.environment_damping_ns_per_m();
-  params.sensor_average_samples = loop.has_sensor_average_samples() ? loop.sensor_average_samples()
-                                                                    : kDefaultSensorAverageSamples;
+  params.sensor_average_samples = loop.has_sensor_average_samples()
+                                      ? loop.sensor_average_samples()
+                                      : defaults::kSensorAverageSamples;
   return params;
 }
 
