@@ -9,6 +9,7 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/config/control_fingerprint.hpp"
+#include "common/core/defaults.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/node/node_core.hpp"
@@ -38,9 +39,9 @@ struct NodeKeys {
 };
 
 struct UsbIds {
-  std::uint32_t vendor_id{0x1209};
-  std::uint32_t product_id{0x7E1E};
-  double watchdog_ms{20.0};
+  std::uint32_t vendor_id{defaults::kUsbVendorId};
+  std::uint32_t product_id{defaults::kUsbProductId};
+  double watchdog_ms{static_cast<double>(defaults::kUsbWatchdog.count())};
 };
 
 struct NodeSetup {
@@ -51,8 +52,8 @@ struct NodeSetup {
   NodeEndpoints endpoints{};
   NodeKeys keys{};
   rt::RtSettings rt{};
-  int cpu_dma_latency_us{10};  // -1: leave alone
-  double telemetry_rate_hz{50.0};
+  int cpu_dma_latency_us{defaults::kCpuDmaLatency_us};  // -1: leave alone
+  double telemetry_rate_hz{defaults::kTelemetryRate_hz};
   // The node's own check of its configuration at start (control_fingerprint.hpp), filled by
   // the node process; reported in telemetry.
   std::optional<ConfigurationCheck> check{};

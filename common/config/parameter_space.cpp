@@ -8,6 +8,8 @@
 #include <string>
 #include <unordered_map>
 
+#include "common/core/defaults.hpp"
+
 namespace teleop::config {
 namespace {
 
@@ -377,14 +379,16 @@ std::vector<BoundEndpoint> bound_endpoints(const teleop::v1::SystemConfig& c) {
   };
   const teleop::v1::Node& m = c.master().node();
   const teleop::v1::Node& s = c.slave().node();
-  add("master.node.state_endpoint", m.state_endpoint(), kDefaultMasterState);
-  add("master.node.command_endpoint", m.command_endpoint(), kDefaultMasterCommand);
-  add("master.node.telemetry_endpoint", m.telemetry_endpoint(), kDefaultMasterTelemetry);
-  add("slave.node.state_endpoint", s.state_endpoint(), kDefaultSlaveState);
-  add("slave.node.command_endpoint", s.command_endpoint(), kDefaultSlaveCommand);
-  add("slave.node.telemetry_endpoint", s.telemetry_endpoint(), kDefaultSlaveTelemetry);
-  add("supervisor.report_endpoint", c.supervisor().report_endpoint(), kDefaultSupervisorReport);
-  add("supervisor.request_endpoint", c.supervisor().request_endpoint(), kDefaultSupervisorRequest);
+  add("master.node.state_endpoint", m.state_endpoint(), defaults::kMasterStateEndpoint);
+  add("master.node.command_endpoint", m.command_endpoint(), defaults::kMasterCommandEndpoint);
+  add("master.node.telemetry_endpoint", m.telemetry_endpoint(), defaults::kMasterTelemetryEndpoint);
+  add("slave.node.state_endpoint", s.state_endpoint(), defaults::kSlaveStateEndpoint);
+  add("slave.node.command_endpoint", s.command_endpoint(), defaults::kSlaveCommandEndpoint);
+  add("slave.node.telemetry_endpoint", s.telemetry_endpoint(), defaults::kSlaveTelemetryEndpoint);
+  add("supervisor.report_endpoint", c.supervisor().report_endpoint(),
+      defaults::kSupervisorReportEndpoint);
+  add("supervisor.request_endpoint", c.supervisor().request_endpoint(),
+      defaults::kSupervisorRequestEndpoint);
   return out;
 }
 

@@ -76,15 +76,4 @@ struct BoundEndpoint {
 // every address; the same ipc path).
 [[nodiscard]] bool endpoints_clash(std::string_view a, std::string_view b);
 
-// Defaults of the endpoints (loopback): master state 5560, slave 5561, commands 5562/5563,
-// telemetry 5564/5565; supervisor reports 5566, requests 5567.
-inline constexpr std::string_view kDefaultMasterState = "tcp://127.0.0.1:5560";
-inline constexpr std::string_view kDefaultSlaveState = "tcp://127.0.0.1:5561";
-inline constexpr std::string_view kDefaultMasterCommand = "tcp://127.0.0.1:5562";
-inline constexpr std::string_view kDefaultSlaveCommand = "tcp://127.0.0.1:5563";
-inline constexpr std::string_view kDefaultMasterTelemetry = "tcp://127.0.0.1:5564";
-inline constexpr std::string_view kDefaultSlaveTelemetry = "tcp://127.0.0.1:5565";
-inline constexpr std::string_view kDefaultSupervisorReport = "tcp://127.0.0.1:5566";
-inline constexpr std::string_view kDefaultSupervisorRequest = "tcp://127.0.0.1:5567";
-
 }  // namespace teleop::config

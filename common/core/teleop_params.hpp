@@ -4,6 +4,8 @@
 
 #include <vector>
 
+#include "common/core/defaults.hpp"
+
 namespace teleop {
 
 // A mass-damper device as felt at the handle, along its arc (eq. 5-6 of Abbott-Okamura).
@@ -58,7 +60,7 @@ struct ParameterBand {
 // Human parameters bounded by lines against grip force, sampled on a grid (Fig. 5).
 struct HumanBand {
   std::vector<double> force_levels_N{};
-  int points_per_axis{4};
+  int points_per_axis{defaults::kBandPointsPerAxis};
   ParameterBand mass_kg{};
   ParameterBand damping_Ns_per_m{};
   ParameterBand stiffness_N_per_m{};
@@ -85,12 +87,12 @@ struct ForceLoopParams {
   double sample_rate_hz{0.0};
   double environment_stiffness_N_per_m{0.0};
   double environment_damping_Ns_per_m{0.0};
-  int sensor_average_samples{50};
+  int sensor_average_samples{defaults::kSensorAverageSamples};
 };
 
 struct AnalysisSettings {
   double required_damping_ratio{0.0};
-  double stiffness_tolerance_N_per_m{1.0};
+  double stiffness_tolerance_N_per_m{defaults::kStiffnessTolerance_N_per_m};
 };
 
 // Everything the stability engine needs about a bilateral teleoperator.

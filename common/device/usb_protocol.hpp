@@ -9,12 +9,14 @@
 #include <cstdint>
 #include <span>
 
+#include "common/core/defaults.hpp"
+
 namespace teleop::device::usb {
 
 // Placeholders: the pid.codes open-source vendor id and a product id not allocated to this
 // project. A shipped device needs its own allocation (docs/usb-protocol.md §1).
-inline constexpr std::uint16_t kVendorId = 0x1209;
-inline constexpr std::uint16_t kProductId = 0x7E1E;
+inline constexpr std::uint16_t kVendorId = defaults::kUsbVendorId;
+inline constexpr std::uint16_t kProductId = defaults::kUsbProductId;
 
 // "TH" on the wire (0x54 0x48): bytes 0-1, frozen across versions, as are version (byte 2)
 // and type (byte 3).
@@ -33,7 +35,8 @@ inline constexpr std::int16_t kRawFullScale = 32767;
 
 inline constexpr std::uint16_t kMinWatchdogMs = 1;
 inline constexpr std::uint16_t kMaxWatchdogMs = 1000;
-inline constexpr std::uint16_t kDefaultWatchdogMs = 20;
+inline constexpr std::uint16_t kDefaultWatchdogMs =
+    static_cast<std::uint16_t>(defaults::kUsbWatchdog.count());
 
 enum class PacketType : std::uint8_t {
   kCommand = 0x01,  // host -> device, OUT endpoint

@@ -40,6 +40,7 @@
 #include "common/control/master_law.hpp"
 #include "common/control/slave_law.hpp"
 #include "common/control/velocity_estimator.hpp"
+#include "common/core/defaults.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/node/node_side.hpp"
 #include "common/node/node_state_machine.hpp"
@@ -52,18 +53,18 @@
 namespace teleop::node {
 
 struct AlignmentParams {
-  double tolerance_m{0.002};
-  double centring_stiffness_N_per_m{30.0};
-  double centring_damping_Ns_per_m{0.3};
-  double centring_max_force_N{0.5};
+  double tolerance_m{defaults::kAlignmentTolerance_m};
+  double centring_stiffness_N_per_m{defaults::kCentringStiffness_N_per_m};
+  double centring_damping_Ns_per_m{defaults::kCentringDamping_Ns_per_m};
+  double centring_max_force_N{defaults::kCentringMaxForce_N};
 };
 
 struct NodeSettings {
   transport::Role role{transport::Role::kMaster};
   std::chrono::nanoseconds period{std::chrono::milliseconds{1}};
   control::LawParams law{};
-  StateMachineParams machine{std::chrono::milliseconds{30}, std::chrono::milliseconds{200}};
-  std::chrono::nanoseconds safe_ramp{std::chrono::milliseconds{10}};
+  StateMachineParams machine{};
+  std::chrono::nanoseconds safe_ramp{defaults::kSafeRamp};
   AlignmentParams alignment{};
   std::uint64_t session_id{1};
   // README "Before engage": the fingerprint of this node's control-relevant configuration

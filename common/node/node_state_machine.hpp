@@ -7,6 +7,8 @@
 #include <chrono>
 #include <cstdint>
 
+#include "common/core/defaults.hpp"
+
 namespace teleop::node {
 
 enum class Mode : std::uint8_t { kDisarmed, kArmed, kAligning, kEngaged, kClutched, kSafe, kFault };
@@ -24,8 +26,8 @@ enum class Command : std::uint8_t {
 [[nodiscard]] const char* to_string(Mode m) noexcept;
 
 struct StateMachineParams {
-  std::chrono::nanoseconds peer_timeout{std::chrono::milliseconds(50)};
-  std::chrono::nanoseconds engage_ramp{std::chrono::milliseconds(500)};
+  std::chrono::nanoseconds peer_timeout{defaults::kPeerTimeout};
+  std::chrono::nanoseconds engage_ramp{defaults::kEngageRamp};
 };
 
 struct CycleInputs {

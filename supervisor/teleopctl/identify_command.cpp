@@ -12,8 +12,8 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/record/session_reader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
-#include "supervisor/teleopctl/replay_command.hpp"
 #include "teleop/v1/node_state.pb.h"
 
 namespace teleop::ctl {
@@ -215,14 +215,15 @@ struct McapRuns {
 
 [[nodiscard]] McapRuns read_runs_mcap(const std::string& path, bool master,
                                       const stability::IdentifyOptions& options) {
-  const std::vector<RecordedCycle> cycles = read_recorded_cycles(path, master);
+  const std::vector<record::RecordedCycle> cycles =
+      record::SessionReader::open(path).cycles(master);
   if (cycles.size() < 2) {
     throw std::runtime_error(fmt::format("{}: {} cycles of the {} recorded, too few to identify",
                                          path, cycles.size(), master ? "master" : "slave"));
   }
   std::vector<std::int64_t> steps;
   for (std::size_t i = 1; i < cycles.size(); ++i) {
-    steps.push_back(cycles[i].sample_time_ns - cycles[i - 1].sample_time_ns);
+    steps.push_back(cycles[i].cycle.sample_time_ns - cycles[i - 1].cycle.sample_time_ns);
   }
   std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
   const double period_ns = static_cast<double>(steps[steps.size() / 2]);
@@ -237,14 +238,15 @@ struct McapRuns {
       stability::Series s;
       s.period_s = period_ns * 1e-9;
       for (std::size_t k = begin + 1; k < end; ++k) {
-        s.position_m.push_back(cycles[k].position_m);
-        s.force_N.push_back(sign * cycles[k].force_N);
-        s.held_force_N.push_back(cycles[k - 1].command_N);
+        s.position_m.push_back(cycles[k].cycle.position_m);
+        s.force_N.push_back(sign * cycles[k].cycle.force_N);
+        s.held_force_N.push_back(cycles[k - 1].cycle.command_N);
       }
       const auto [lo, hi] = std::minmax_element(s.position_m.begin(), s.position_m.end());
       if (stability::usable_rows(s.position_m.size(), true, options) > 0 && *lo != *hi) {
         out.names.push_back(fmt::format("{} {} cycles {}..{}", path, master ? "master" : "slave",
-                                        cycles[begin].sequence, cycles[end - 1].sequence));
+                                        cycles[begin].cycle.sequence,
+                                        cycles[end - 1].cycle.sequence));
         out.runs.push_back(std::move(s));
       } else {
         ++out.short_runs;
@@ -255,16 +257,16 @@ struct McapRuns {
     begin = end;
   };
   for (std::size_t i = 0; i < cycles.size(); ++i) {
-    const RecordedCycle& c = cycles[i];
-    if (c.mode == v1::FAULT) {
+    const record::RecordedCycle& c = cycles[i];
+    if (c.cycle.mode == node::Mode::kFault) {
       close_run(i);
       begin = i + 1;
       continue;
     }
     if (i > begin) {
-      const RecordedCycle& p = cycles[i - 1];
-      const double dt = static_cast<double>(c.sample_time_ns - p.sample_time_ns);
-      if (c.session_id != p.session_id || c.sequence != p.sequence + 1 ||
+      const record::RecordedCycle& p = cycles[i - 1];
+      const double dt = static_cast<double>(c.cycle.sample_time_ns - p.cycle.sample_time_ns);
+      if (c.session_id != p.session_id || c.cycle.sequence != p.cycle.sequence + 1 ||
           std::abs(dt - period_ns) > 0.01 * period_ns) {
         close_run(i);
       }
@@ -354,6 +356,167 @@ std::string identify_usage() {
          "  --help           this text\n";
 }
 
+namespace {
+
+// Every run of every file: a session file's stretches of consecutive cycles, or a CSV file.
+struct Runs {
+  std::vector<stability::Series> runs{};
+  std::vector<std::string> names{};
+  std::size_t short_runs{0};
+};
+
+[[nodiscard]] Runs read_runs(const IdentifyArgs& a) {
+  Runs out;
+  for (const std::string& file : a.files) {
+    if (record::is_mcap_file(file)) {
+      if (a.custom_columns || a.columns.rate_hz > 0.0 || a.columns.time != "time_s") {
+        throw std::runtime_error(fmt::format(
+            "{}: a session file: --position, --force, --held-force, --time and --rate are "
+            "for CSV files",
+            file));
+      }
+      McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options);
+      for (std::size_t i = 0; i < m.runs.size(); ++i) {
+        out.runs.push_back(std::move(m.runs[i]));
+        out.names.push_back(m.names[i]);
+      }
+      out.short_runs += m.short_runs;
+    } else {
+      out.runs.push_back(read_series_csv(file, a.columns));
+      out.names.push_back(file);
+    }
+  }
+  return out;
+}
+
+// The fit, its errors naming the file behind "run N".
+[[nodiscard]] stability::IdentifyResult fit(const Runs& runs,
+                                            const stability::IdentifyOptions& options) {
+  try {
+    return stability::identify(runs.runs, options);
+  } catch (const std::invalid_argument& e) {
+    std::string message = e.what();
+    for (std::size_t i = runs.names.size(); i-- > 0;) {
+      const std::string tag = fmt::format("run {}:", i + 1);
+      const std::size_t at = message.find(tag);
+      if (at != std::string::npos) {
+        message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, runs.names[i]));
+        break;
+      }
+    }
+    throw std::runtime_error(message);
+  }
+}
+
+[[nodiscard]] bool physical(const stability::IdentifyResult& r) {
+  return r.mass_kg > 0.0 && r.damping_Ns_per_m >= 0.0;
+}
+
+[[nodiscard]] std::vector<std::string> fit_warnings(const stability::IdentifyResult& r,
+                                                    std::size_t short_runs) {
+  std::vector<std::string> warnings;
+  if (!physical(r)) {
+    warnings.push_back(fmt::format(
+        "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
+        "force's sign and columns",
+        r.mass_kg, r.damping_Ns_per_m));
+  }
+  if (r.r_squared < kPoorFit) {
+    warnings.push_back(fmt::format(
+        "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (friction, "
+        "contact, a missing force column, too little excitation?)",
+        r.r_squared, kPoorFit));
+  }
+  if (short_runs > 0) {
+    warnings.push_back(fmt::format(
+        "{} stretch{} of consecutive cycles too short to fit or motionless left out (sequence "
+        "gaps, restarts, overruns or faults split a session)",
+        short_runs, short_runs == 1 ? "" : "es"));
+  }
+  return warnings;
+}
+
+// What was fitted, for output.
+struct Fitted {
+  const IdentifyArgs& args;
+  const Runs& runs;
+  const stability::IdentifyResult& result;
+  std::optional<std::string> side{};
+  std::vector<std::string> warnings{};
+  std::string line{};  // the configuration line to paste
+};
+
+void print_json(const Fitted& f, std::ostream& out) {
+  const stability::IdentifyResult& r = f.result;
+  const IdentifyArgs& a = f.args;
+  json j = {{"device", f.side ? json(*f.side) : json(nullptr)},
+            {"mass_kg", r.mass_kg},
+            {"damping_Ns_per_m", r.damping_Ns_per_m},
+            {"r_squared", r.r_squared},
+            {"residual_rms_N", r.residual_rms_N},
+            {"samples", r.samples},
+            {"condition_number", r.condition_number},
+            {"smoothing_passes", a.options.smoothing_passes},
+            {"trim_samples", a.options.trim_samples},
+            {"smooth_force", a.options.smooth_force},
+            {"runs", json::array()},
+            {"warnings", f.warnings},
+            {"config", physical(r) ? json(f.line) : json(nullptr)}};
+  for (std::size_t i = 0; i < r.runs.size(); ++i) {
+    j["runs"].push_back({{"file", f.runs.names[i]},
+                         {"samples", r.runs[i].samples},
+                         {"r_squared", r.runs[i].r_squared}});
+  }
+  out << j.dump(2) << "\n";
+}
+
+void print_text(const Fitted& f, std::ostream& out) {
+  const stability::IdentifyResult& r = f.result;
+  const IdentifyArgs& a = f.args;
+  out << fmt::format("identified {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
+                     f.side ? *f.side + " device" : "device", r.runs.size(),
+                     r.runs.size() == 1 ? "" : "s", r.samples, a.options.smoothing_passes,
+                     a.options.trim_samples);
+  out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
+  out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
+  out << fmt::format("  r^2               {:.4f} (residual rms {:.3g} N)\n", r.r_squared,
+                     r.residual_rms_N);
+  out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
+  if (r.runs.size() > 1) {
+    for (std::size_t i = 0; i < r.runs.size(); ++i) {
+      out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, f.runs.names[i],
+                         r.runs[i].samples, r.runs[i].r_squared);
+    }
+  }
+  for (const std::string& w : f.warnings) out << "  warning: " << w << "\n";
+  if (physical(r)) {
+    out << (f.side ? "configuration to paste:\n"
+                   : "configuration to paste (inside master { } or slave { }):\n")
+        << "  " << f.line << "\n";
+  }
+}
+
+int identify(const IdentifyArgs& a, std::ostream& out, std::ostream& err) {
+  const Runs runs = read_runs(a);
+  const stability::IdentifyResult r = fit(runs, a.options);
+  Fitted f{a, runs, r};
+  f.side = a.custom_columns ? a.device : std::optional<std::string>(a.device.value_or("master"));
+  f.warnings = fit_warnings(r, runs.short_runs);
+  f.line = config_line(f.side, r.mass_kg, r.damping_Ns_per_m);
+  if (a.json) {
+    print_json(f, out);
+  } else {
+    print_text(f, out);
+  }
+  if (!physical(r)) {
+    err << "teleopctl identify: " << f.warnings.front() << "\n";
+    return kExitError;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
 int run_identify(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   IdentifyArgs a;
   try {
@@ -368,117 +531,7 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
     err << "teleopctl identify: " << e.what() << "\n" << identify_usage();
     return kExitUsage;
   }
-  return run_guarded("identify", err, [&] {
-    std::vector<stability::Series> runs;
-    std::vector<std::string> run_names;
-    std::size_t short_runs = 0;
-    for (const std::string& file : a.files) {
-      if (is_mcap_file(file)) {
-        if (a.custom_columns || a.columns.rate_hz > 0.0 || a.columns.time != "time_s") {
-          throw std::runtime_error(fmt::format(
-              "{}: a session file: --position, --force, --held-force, --time and --rate are "
-              "for CSV files",
-              file));
-        }
-        McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options);
-        for (std::size_t i = 0; i < m.runs.size(); ++i) {
-          runs.push_back(std::move(m.runs[i]));
-          run_names.push_back(m.names[i]);
-        }
-        short_runs += m.short_runs;
-      } else {
-        runs.push_back(read_series_csv(file, a.columns));
-        run_names.push_back(file);
-      }
-    }
-    stability::IdentifyResult r;
-    try {
-      r = stability::identify(runs, a.options);
-    } catch (const std::invalid_argument& e) {
-      // Name the file behind "run N".
-      std::string message = e.what();
-      for (std::size_t i = run_names.size(); i-- > 0;) {
-        const std::string tag = fmt::format("run {}:", i + 1);
-        const std::size_t at = message.find(tag);
-        if (at != std::string::npos) {
-          message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, run_names[i]));
-          break;
-        }
-      }
-      throw std::runtime_error(message);
-    }
-    const std::optional<std::string> side =
-        a.custom_columns ? a.device : std::optional<std::string>(a.device.value_or("master"));
-    const bool valid = r.mass_kg > 0.0 && r.damping_Ns_per_m >= 0.0;
-    std::vector<std::string> warnings;
-    if (!valid) {
-      warnings.push_back(fmt::format(
-          "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
-          "force's sign and columns",
-          r.mass_kg, r.damping_Ns_per_m));
-    }
-    if (r.r_squared < kPoorFit) {
-      warnings.push_back(fmt::format(
-          "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (friction, "
-          "contact, a missing force column, too little excitation?)",
-          r.r_squared, kPoorFit));
-    }
-    if (short_runs > 0) {
-      warnings.push_back(fmt::format(
-          "{} stretch{} of consecutive cycles too short to fit or motionless left out (sequence "
-          "gaps, restarts, overruns or faults split a session)",
-          short_runs, short_runs == 1 ? "" : "es"));
-    }
-    const std::string line = config_line(side, r.mass_kg, r.damping_Ns_per_m);
-    if (a.json) {
-      json j = {{"device", side ? json(*side) : json(nullptr)},
-                {"mass_kg", r.mass_kg},
-                {"damping_Ns_per_m", r.damping_Ns_per_m},
-                {"r_squared", r.r_squared},
-                {"residual_rms_N", r.residual_rms_N},
-                {"samples", r.samples},
-                {"condition_number", r.condition_number},
-                {"smoothing_passes", a.options.smoothing_passes},
-                {"trim_samples", a.options.trim_samples},
-                {"smooth_force", a.options.smooth_force},
-                {"runs", json::array()},
-                {"warnings", warnings},
-                {"config", valid ? json(line) : json(nullptr)}};
-      for (std::size_t i = 0; i < r.runs.size(); ++i) {
-        j["runs"].push_back({{"file", run_names[i]},
-                             {"samples", r.runs[i].samples},
-                             {"r_squared", r.runs[i].r_squared}});
-      }
-      out << j.dump(2) << "\n";
-    } else {
-      out << fmt::format("identified {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
-                         side ? *side + " device" : "device", r.runs.size(),
-                         r.runs.size() == 1 ? "" : "s", r.samples, a.options.smoothing_passes,
-                         a.options.trim_samples);
-      out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
-      out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
-      out << fmt::format("  r^2               {:.4f} (residual rms {:.3g} N)\n", r.r_squared,
-                         r.residual_rms_N);
-      out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
-      if (r.runs.size() > 1) {
-        for (std::size_t i = 0; i < r.runs.size(); ++i) {
-          out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, run_names[i],
-                             r.runs[i].samples, r.runs[i].r_squared);
-        }
-      }
-      for (const std::string& w : warnings) out << "  warning: " << w << "\n";
-      if (valid) {
-        out << (side ? "configuration to paste:\n"
-                     : "configuration to paste (inside master { } or slave { }):\n")
-            << "  " << line << "\n";
-      }
-    }
-    if (!valid) {
-      err << "teleopctl identify: " << warnings.front() << "\n";
-      return kExitError;
-    }
-    return kExitOk;
-  });
+  return run_guarded("identify", err, [&] { return identify(a, out, err); });
 }
 
 }  // namespace teleop::ctl

@@ -9,6 +9,7 @@
 #include <thread>
 
 #include "common/config/node_loader.hpp"
+#include "common/core/defaults.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
 #include "teleop/v1/supervisor.pb.h"
 
@@ -16,10 +17,6 @@ namespace teleop::ctl {
 namespace {
 
 using namespace std::chrono_literals;
-
-// The supervisor's defaults (supervisor_app.cpp): instance 0.
-constexpr const char* kDefaultReport = "tcp://127.0.0.1:5566";
-constexpr const char* kDefaultRequest = "tcp://127.0.0.1:5567";
 
 std::string exit_text(int status) {
   if (WIFEXITED(status)) return fmt::format("exit status {}", WEXITSTATUS(status));
@@ -60,12 +57,12 @@ std::string shift_endpoint_port(const std::string& endpoint, int by) {
 
 std::string supervisor_request_endpoint(const config::LoadedConfig& loaded) {
   const std::string& e = loaded.config.supervisor().request_endpoint();
-  return e.empty() ? kDefaultRequest : e;
+  return e.empty() ? std::string(defaults::kSupervisorRequestEndpoint) : e;
 }
 
 std::string supervisor_report_endpoint(const config::LoadedConfig& loaded) {
   const std::string& e = loaded.config.supervisor().report_endpoint();
-  return e.empty() ? kDefaultReport : e;
+  return e.empty() ? std::string(defaults::kSupervisorReportEndpoint) : e;
 }
 
 std::vector<std::string> instance_overrides(const config::LoadedConfig& loaded, int instance) {

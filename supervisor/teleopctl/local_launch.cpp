@@ -12,6 +12,7 @@
 #include <fstream>
 
 #include "common/config/node_loader.hpp"
+#include "common/core/defaults.hpp"
 #include "common/transport/zmq_security.hpp"
 
 namespace teleop::ctl {
@@ -58,11 +59,12 @@ void private_dir(const fs::path& p) {
 }
 
 std::string supervisor_request_endpoint(const v1::SystemConfig& c) {
-  return c.supervisor().request_endpoint().empty() ? "tcp://127.0.0.1:5567"
-                                                   : c.supervisor().request_endpoint();
+  return c.supervisor().request_endpoint().empty()
+             ? std::string(defaults::kSupervisorRequestEndpoint)
+             : c.supervisor().request_endpoint();
 }
 std::string supervisor_report_endpoint(const v1::SystemConfig& c) {
-  return c.supervisor().report_endpoint().empty() ? "tcp://127.0.0.1:5566"
+  return c.supervisor().report_endpoint().empty() ? std::string(defaults::kSupervisorReportEndpoint)
                                                   : c.supervisor().report_endpoint();
 }
 

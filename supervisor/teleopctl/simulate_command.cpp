@@ -8,12 +8,14 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <ostream>
+#include <string_view>
 
 #include "common/config/scene_loader.hpp"
 #include "common/control/velocity_estimator.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/record/mcap_writer.hpp"
 #include "common/record/proto_schema.hpp"
+#include "common/record/session.hpp"
 #include "common/scene/lockstep.hpp"
 #include "common/stability/analyzer.hpp"
 #include "supervisor/core/report.hpp"
@@ -96,23 +98,131 @@ constexpr std::size_t kCyclesPerMessage = 20;
 // from the sensed positions; the command it wrote, held over [kT, (k+1)T) (the master's
 // actuator is driven by -F_am); the peer state of that sample: the slave's at once, the
 // master's round_trip_delay_samples late.
-void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
-                        const scene::SceneSetup& setup, const scene::SimulationResult& r) {
-  const std::size_t n_cols = r.columns.size();
-  auto col = [&](const char* name) {
-    for (std::size_t i = 0; i < n_cols; ++i) {
-      if (r.columns[i] == name) return i;
+// The session file's channels, one schema per type as the live recorder keeps them.
+class SessionFile {
+ public:
+  explicit SessionFile(const std::string& path) : writer_(path, writer_options()) {
+    config_ch = channel(v1::SystemConfig::descriptor(), record::topic::kConfig);
+    report_ch = channel(v1::StabilityReport::descriptor(), record::topic::kStability);
+    master_ch = channel(v1::Telemetry::descriptor(), record::topic::kMasterTelemetry);
+    slave_ch = channel(v1::Telemetry::descriptor(), record::topic::kSlaveTelemetry);
+  }
+  void write(std::uint16_t ch, std::int64_t log_time_ns, const std::string& bytes) {
+    if (!writer_.write(ch, static_cast<std::uint64_t>(log_time_ns), bytes)) {
+      throw std::runtime_error(writer_.error());
+    }
+  }
+  void close() {
+    if (!writer_.close()) throw std::runtime_error(writer_.error());
+  }
+
+  std::uint16_t config_ch{0};
+  std::uint16_t report_ch{0};
+  std::uint16_t master_ch{0};
+  std::uint16_t slave_ch{0};
+
+ private:
+  [[nodiscard]] static record::WriterOptions writer_options() {
+    record::WriterOptions options;
+    options.library = "teleop-record (teleopctl simulate)";
+    // Offline: chunks by size only, so the same scene gives the same bytes.
+    options.max_chunk_age = std::chrono::nanoseconds::max();
+    return options;
+  }
+  std::uint16_t channel(const google::protobuf::Descriptor* d, std::string_view topic) {
+    auto it = schemas_.find(d);
+    if (it == schemas_.end()) {
+      it = schemas_.emplace(d, writer_.add_schema(record::protobuf_schema(d))).first;
+    }
+    return writer_.add_channel(record::protobuf_channel(it->second, std::string(topic)));
+  }
+
+  record::McapWriter writer_;
+  std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas_{};
+};
+
+// The simulation's rows by column name.
+class SimRows {
+ public:
+  explicit SimRows(const scene::SimulationResult& r) : r_(r), n_cols_(r.columns.size()) {}
+  [[nodiscard]] std::size_t col(const char* name) const {
+    for (std::size_t i = 0; i < n_cols_; ++i) {
+      if (r_.columns[i] == name) return i;
     }
     throw std::logic_error(fmt::format("simulation rows have no column '{}'", name));
-  };
-  const std::size_t c_xm = col("master_sensed_m");
-  const std::size_t c_xs = col("slave_sensed_m");
-  const std::size_t c_fam = col("master_force_N");
-  const std::size_t c_fas = col("slave_force_N");
-  const std::size_t c_fh = col("human_force_N");
-  const std::size_t c_fe = col("environment_force_N");
-  const std::size_t rows = n_cols == 0 ? 0 : r.rows.size() / n_cols;
-  auto at = [&](std::size_t row, std::size_t c) { return r.rows[row * n_cols + c]; };
+  }
+  [[nodiscard]] std::size_t rows() const { return n_cols_ == 0 ? 0 : r_.rows.size() / n_cols_; }
+  [[nodiscard]] double at(std::size_t row, std::size_t c) const {
+    return r_.rows[row * n_cols_ + c];
+  }
+
+ private:
+  const scene::SimulationResult& r_;
+  std::size_t n_cols_;
+};
+
+// What both nodes' Telemetry messages carry besides their cycles: identity, the law in force,
+// loop and link statistics of a lockstep run.
+struct SimulatedTelemetry {
+  const TeleopParams& p;
+  std::uint64_t master_session{0};
+  std::uint64_t slave_session{0};
+  double period_s{0.0};
+  std::size_t delay{0};
+  std::int64_t round_trip_ns{0};
+
+  void start(v1::Telemetry& t, bool master) const {
+    t.Clear();
+    t.set_session_id(master ? master_session : slave_session);
+    t.set_role(master ? v1::MASTER : v1::SLAVE);
+    t.set_mode(v1::ENGAGED);
+    t.set_mode_reason("simulated (teleopctl simulate, lockstep)");
+    t.set_device("sim");
+    v1::ActiveParameters* a = t.mutable_active();
+    *a->mutable_gains() = supervisor::to_proto(p.gains);
+    a->set_master_fixture_stiffness_n_per_m(p.master_fixture.stiffness_N_per_m);
+    a->set_slave_fixture_stiffness_n_per_m(p.slave_fixture.stiffness_N_per_m);
+    a->set_ramp_progress(1.0);
+  }
+  void finish(v1::Telemetry& t, bool master, std::size_t cycles_so_far, std::int64_t now) const {
+    t.set_sent_time_ns(now);
+    v1::LoopStats* l = t.mutable_loop();
+    l->set_period_s(period_s);
+    l->set_cycles(cycles_so_far);
+    v1::LinkStats* k = t.mutable_link();
+    k->set_accepted(master ? cycles_so_far : (cycles_so_far > delay ? cycles_so_far - delay : 0));
+    k->set_round_trip_ns(round_trip_ns);
+    k->set_round_trip_p50_ns(round_trip_ns);
+    k->set_round_trip_p99_ns(round_trip_ns);
+    k->set_round_trip_samples(static_cast<std::int32_t>(delay));
+    k->set_one_way_latency_ns(round_trip_ns / 2);
+    k->set_peer_session_id(master ? slave_session : master_session);
+    k->set_peer_age_ns(master ? 0 : round_trip_ns);
+  }
+};
+
+// One node's cycle as the law saw it (the caller fills the node's own values).
+void set_cycle(v1::CycleRecord& c, std::uint64_t seq, std::int64_t time_ns, double position_m,
+               double velocity_m_per_s, double force_N, double command_N) {
+  c.set_sequence(seq);
+  c.set_sample_time_ns(time_ns);
+  c.set_mode(v1::ENGAGED);
+  c.set_position_m(position_m);
+  c.set_velocity_m_per_s(velocity_m_per_s);
+  c.set_force_n(force_N);
+  c.set_command_n(command_N);
+}
+
+void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
+                        const scene::SceneSetup& setup, const scene::SimulationResult& r) {
+  const SimRows sim(r);
+  const std::size_t c_xm = sim.col("master_sensed_m");
+  const std::size_t c_xs = sim.col("slave_sensed_m");
+  const std::size_t c_fam = sim.col("master_force_N");
+  const std::size_t c_fas = sim.col("slave_force_N");
+  const std::size_t c_fh = sim.col("human_force_N");
+  const std::size_t c_fe = sim.col("environment_force_N");
+  const std::size_t rows = sim.rows();
 
   const TeleopParams& p = setup.teleop;
   const double rate = p.sample_rate_hz;
@@ -135,121 +245,64 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
   master_velocity.reset(master0);
   slave_velocity.reset(slave0);
 
-  record::WriterOptions options;
-  options.library = "teleop-record (teleopctl simulate)";
-  // Offline: chunks by size only, so the same scene gives the same bytes.
-  options.max_chunk_age = std::chrono::nanoseconds::max();
-  record::McapWriter writer(path, options);
-  // One schema per type, as the live recorder keeps them.
-  std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas;
-  auto channel = [&](const google::protobuf::Descriptor* d, const char* topic) {
-    auto it = schemas.find(d);
-    if (it == schemas.end()) {
-      it = schemas.emplace(d, writer.add_schema(record::protobuf_schema(d))).first;
-    }
-    return writer.add_channel(record::protobuf_channel(it->second, topic));
-  };
-  const std::uint16_t config_ch = channel(v1::SystemConfig::descriptor(), "/config");
-  const std::uint16_t report_ch =
-      channel(v1::StabilityReport::descriptor(), "/supervisor/stability");
-  const std::uint16_t master_ch = channel(v1::Telemetry::descriptor(), "/master/telemetry");
-  const std::uint16_t slave_ch = channel(v1::Telemetry::descriptor(), "/slave/telemetry");
-  auto write = [&](std::uint16_t ch, std::int64_t log_time_ns, const std::string& bytes) {
-    if (!writer.write(ch, static_cast<std::uint64_t>(log_time_ns), bytes)) {
-      throw std::runtime_error(writer.error());
-    }
-  };
-  write(config_ch, 0, cfg.config.SerializeAsString());
-  write(report_ch, 0, start_report(p).SerializeAsString());
+  SessionFile file(path);
+  file.write(file.config_ch, 0, cfg.config.SerializeAsString());
+  file.write(file.report_ch, 0, start_report(p).SerializeAsString());
 
   const std::uint64_t seed = setup.seed;
-  const std::uint64_t master_session = 0x5349'4D00'0000'0000ULL ^ (2 * seed + 1);
-  const std::uint64_t slave_session = 0x5349'4D00'0000'0000ULL ^ (2 * seed + 2);
-  const std::int64_t round_trip_ns = static_cast<std::int64_t>(delay) * period_ns;
-  auto start = [&](v1::Telemetry& t, bool master) {
-    t.Clear();
-    t.set_session_id(master ? master_session : slave_session);
-    t.set_role(master ? v1::MASTER : v1::SLAVE);
-    t.set_mode(v1::ENGAGED);
-    t.set_mode_reason("simulated (teleopctl simulate, lockstep)");
-    t.set_device("sim");
-    v1::ActiveParameters* a = t.mutable_active();
-    *a->mutable_gains() = supervisor::to_proto(p.gains);
-    a->set_master_fixture_stiffness_n_per_m(p.master_fixture.stiffness_N_per_m);
-    a->set_slave_fixture_stiffness_n_per_m(p.slave_fixture.stiffness_N_per_m);
-    a->set_ramp_progress(1.0);
-  };
-  auto finish = [&](v1::Telemetry& t, bool master, std::size_t cycles_so_far, std::int64_t now) {
-    t.set_sent_time_ns(now);
-    v1::LoopStats* l = t.mutable_loop();
-    l->set_period_s(period_s);
-    l->set_cycles(cycles_so_far);
-    v1::LinkStats* k = t.mutable_link();
-    k->set_accepted(master ? cycles_so_far : (cycles_so_far > delay ? cycles_so_far - delay : 0));
-    k->set_round_trip_ns(round_trip_ns);
-    k->set_round_trip_p50_ns(round_trip_ns);
-    k->set_round_trip_p99_ns(round_trip_ns);
-    k->set_round_trip_samples(static_cast<std::int32_t>(delay));
-    k->set_one_way_latency_ns(round_trip_ns / 2);
-    k->set_peer_session_id(master ? slave_session : master_session);
-    k->set_peer_age_ns(master ? 0 : round_trip_ns);
-  };
+  const SimulatedTelemetry frame{p,
+                                 0x5349'4D00'0000'0000ULL ^ (2 * seed + 1),
+                                 0x5349'4D00'0000'0000ULL ^ (2 * seed + 2),
+                                 period_s,
+                                 delay,
+                                 static_cast<std::int64_t>(delay) * period_ns};
   v1::Telemetry mt;
   v1::Telemetry st;
   for (std::size_t k = 0; k < rows; ++k) {
     if (k % kCyclesPerMessage == 0) {
-      start(mt, true);
-      start(st, false);
+      frame.start(mt, true);
+      frame.start(st, false);
     }
     const std::uint64_t seq = k + 1;
     const std::int64_t time_ns = static_cast<std::int64_t>(k) * period_ns;
-    const double xm = at(k, c_xm);
-    const double xs = at(k, c_xs);
+    const double xm = sim.at(k, c_xm);
+    const double xs = sim.at(k, c_xs);
     // The slave's view of the master: its state `delay` samples ago (the lockstep's in-flight
     // buffer starts with the master's initial position).
     const bool have_master = k >= delay;
-    const double xm_seen = have_master ? at(k - delay, c_xm) : master0;
+    const double xm_seen = have_master ? sim.at(k - delay, c_xm) : master0;
     const std::uint64_t master_seq_seen = have_master ? k - delay + 1 : 0;
 
     v1::CycleRecord* c = mt.add_cycles();
-    c->set_sequence(seq);
-    c->set_sample_time_ns(time_ns);
-    c->set_mode(v1::ENGAGED);
-    c->set_position_m(xm);
-    c->set_velocity_m_per_s(master_velocity.step(xm));
-    c->set_force_n(k == 0 ? master_f0 : at(k - 1, c_fh));
-    c->set_command_n(0.0 - at(k, c_fam));  // 0.0 -: no negative zero in the CSV
+    // 0.0 -: no negative zero in the CSV
+    set_cycle(*c, seq, time_ns, xm, master_velocity.step(xm),
+              k == 0 ? master_f0 : sim.at(k - 1, c_fh), 0.0 - sim.at(k, c_fam));
     c->set_peer_sequence(seq);
     c->set_peer_position_m(xs);
     c->set_peer_age_ns(0);
     c->set_coupling_weight(1.0);
-    c->set_round_trip_ns(round_trip_ns);
+    c->set_round_trip_ns(frame.round_trip_ns);
     c->set_master_sequence(seq);
 
     c = st.add_cycles();
-    c->set_sequence(seq);
-    c->set_sample_time_ns(time_ns);
-    c->set_mode(v1::ENGAGED);
-    c->set_position_m(xs);
-    c->set_velocity_m_per_s(slave_velocity.step(xs));
-    c->set_force_n(k == 0 ? slave_f0 : at(k - 1, c_fe));
-    c->set_command_n(at(k, c_fas));
+    set_cycle(*c, seq, time_ns, xs, slave_velocity.step(xs),
+              k == 0 ? slave_f0 : sim.at(k - 1, c_fe), sim.at(k, c_fas));
     c->set_peer_sequence(master_seq_seen);
     c->set_peer_position_m(xm_seen);
-    c->set_peer_age_ns(round_trip_ns);
+    c->set_peer_age_ns(frame.round_trip_ns);
     c->set_coupling_weight(1.0);
-    c->set_round_trip_ns(round_trip_ns);
+    c->set_round_trip_ns(frame.round_trip_ns);
     c->set_master_sequence(master_seq_seen);
 
     if ((k + 1) % kCyclesPerMessage == 0 || k + 1 == rows) {
       const std::int64_t now = time_ns + period_ns;
-      finish(mt, true, k + 1, now);
-      finish(st, false, k + 1, now);
-      write(master_ch, now, mt.SerializeAsString());
-      write(slave_ch, now, st.SerializeAsString());
+      frame.finish(mt, true, k + 1, now);
+      frame.finish(st, false, k + 1, now);
+      file.write(file.master_ch, now, mt.SerializeAsString());
+      file.write(file.slave_ch, now, st.SerializeAsString());
     }
   }
-  if (!writer.close()) throw std::runtime_error(writer.error());
+  file.close();
 }
 
 void write_plot(const std::string& path, const scene::SimulationResult& r) {

@@ -5,6 +5,7 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/config/node_loader.hpp"
+#include "common/core/defaults.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/estop_fanout.hpp"
 #include "supervisor/teleopctl/local_launch.hpp"
@@ -29,9 +30,9 @@ std::string estop_usage() {
 
 int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::string config_path;
-  std::string master = "tcp://127.0.0.1:5562";
-  std::string slave = "tcp://127.0.0.1:5563";
-  std::string supervisor = "tcp://127.0.0.1:5567";
+  std::string master(defaults::kMasterCommandEndpoint);
+  std::string slave(defaults::kSlaveCommandEndpoint);
+  std::string supervisor(defaults::kSupervisorRequestEndpoint);
   std::string key;
   int timeout_ms = 500;
   bool master_set = false;

@@ -1,0 +1,46 @@
+#include "common/config/resimulation_loader.hpp"
+
+#include "common/config/node_loader.hpp"
+#include "common/config/scene_loader.hpp"
+#include "common/scene/lockstep.hpp"
+
+namespace teleop::config {
+
+std::optional<Resimulation> to_resimulation(const LoadedConfig& config,
+                                            const LoadedConfig& recorded, double recorded_master0_m,
+                                            double recorded_slave0_m) {
+  Resimulation out;
+  scene::ResimulationSetup& r = out.setup;
+  r.master0_m = recorded_master0_m;
+  r.slave0_m = recorded_slave0_m;
+  if (config.config.has_scene()) {
+    const scene::SceneSetup setup = to_scene_setup(config);
+    if (setup.force_device) return std::nullopt;
+    r.law = setup.law;
+    r.slave = setup.slave;
+    out.recorded_slave = to_scene_setup(recorded).slave;
+    r.master0_m = setup.master.initial_position_m;
+    r.slave0_m = setup.slave.initial_position_m;
+    if (setup.equilibrium_perturbation_m) {
+      const scene::Equilibrium eq =
+          scene::static_equilibrium(setup.teleop, setup.equilibrium_push_N);
+      r.master0_m = eq.master_m;
+      r.slave0_m = eq.slave_m + *setup.equilibrium_perturbation_m;
+      r.law.clutch_fade_s = 0.0;
+    }
+  } else {
+    const NodeSetup node = to_node_setup(config, transport::Role::kSlave);
+    r.law = node.settings.law;
+    r.slave = node.sim;
+    r.slave.hold_scene_until_engaged = false;
+    out.recorded_slave = to_node_setup(recorded, transport::Role::kSlave).sim;
+  }
+  const TeleopParams params = to_teleop_params(config);
+  r.sample_rate_hz = params.sample_rate_hz;
+  r.round_trip_delay_samples = static_cast<std::size_t>(params.round_trip_delay_samples);
+  r.position_scaling = params.scaling.position;
+  r.slave_fixture = params.slave_fixture;
+  return out;
+}
+
+}  // namespace teleop::config

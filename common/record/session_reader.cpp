@@ -1,0 +1,247 @@
+#include "common/record/session_reader.hpp"
+
+#include <google/protobuf/descriptor.pb.h>
+#include <google/protobuf/text_format.h>
+
+#include <algorithm>
+#include <fstream>
+#include <stdexcept>
+#include <utility>
+
+namespace teleop::record {
+namespace {
+
+namespace pb = google::protobuf;
+
+// node::Mode of a teleop.v1.NodeMode (node_state.proto: DISARMED = 1 ... FAULT = 7, in the
+// order of node::Mode); unspecified or unknown: disarmed.
+node::Mode to_mode(v1::NodeMode wire) {
+  const int index = static_cast<int>(wire) - 1;
+  if (index < 0 || index > static_cast<int>(node::Mode::kFault)) return node::Mode::kDisarmed;
+  return static_cast<node::Mode>(index);
+}
+
+template <typename T>
+std::vector<Stamped<T>> stamped_on(const SessionReader& session, std::string_view topic) {
+  std::vector<Stamped<T>> out;
+  for (const MessageView& m : session.messages_on(topic)) {
+    out.push_back({m.log_time_ns, session.decode<T>(m)});
+  }
+  return out;
+}
+
+}  // namespace
+
+SessionReader SessionReader::open(const std::filesystem::path& path) {
+  if (!std::filesystem::exists(path)) {
+    throw std::runtime_error(path.string() + ": no such file");
+  }
+  try {
+    return SessionReader(McapReader::open(path));
+  } catch (const McapError& e) {
+    if (!is_mcap_file(path)) throw;
+    throw std::runtime_error(
+        std::string(e.what()) +
+        "\n(the file was cut short or damaged: 'teleopctl replay --recover OUT.mcap " +
+        path.string() + "' keeps every complete chunk)");
+  }
+}
+
+bool SessionReader::has_topic(std::string_view topic) const {
+  for (const auto& [id, ch] : reader_.channels()) {
+    if (ch.topic == topic) return true;
+  }
+  return false;
+}
+
+std::string SessionReader::channel_list() const {
+  std::string s;
+  for (const auto& [id, ch] : reader_.channels()) s += (s.empty() ? "" : ", ") + ch.topic;
+  return s.empty() ? "none" : s;
+}
+
+std::uint64_t SessionReader::first_log_time_ns() const {
+  if (reader_.statistics() && reader_.statistics()->message_count > 0) {
+    return reader_.statistics()->message_start_time;
+  }
+  std::uint64_t t = UINT64_MAX;
+  reader_.for_each_message(Order::kFile,
+                           [&](const MessageView& m) { t = std::min(t, m.log_time_ns); });
+  return t == UINT64_MAX ? 0 : t;
+}
+
+std::uint64_t SessionReader::last_log_time_ns() const {
+  if (reader_.statistics() && reader_.statistics()->message_count > 0) {
+    return reader_.statistics()->message_end_time;
+  }
+  std::uint64_t t = 0;
+  reader_.for_each_message(Order::kFile,
+                           [&](const MessageView& m) { t = std::max(t, m.log_time_ns); });
+  return t;
+}
+
+std::vector<MessageView> SessionReader::messages_on(std::string_view topic) const {
+  std::vector<MessageView> out;
+  reader_.for_each_message(Order::kLogTime, [&](const MessageView& m) {
+    if (m.channel->topic == topic) out.push_back(m);
+  });
+  return out;
+}
+
+void SessionReader::decode_into(const MessageView& m, pb::Message& out) const {
+  const std::string& want = out.GetDescriptor()->full_name();
+  if (m.schema == nullptr || m.schema->name != want) {
+    throw std::runtime_error(path() + ": channel " + m.channel->topic + " carries " +
+                             (m.schema ? m.schema->name : "no schema") + ", not " + want);
+  }
+  if (!out.ParseFromArray(m.data.data(), static_cast<int>(m.data.size()))) {
+    throw std::runtime_error(path() + ": " + m.channel->topic + " message at log time " +
+                             std::to_string(m.log_time_ns) + " ns does not decode as " + want);
+  }
+}
+
+void SessionReader::visit(const SessionVisitor& v) const {
+  reader_.for_each_message(Order::kLogTime, [&](const MessageView& m) {
+    if (v.message) v.message(m);
+    const std::string& topic = m.channel->topic;
+    if ((topic == topic::kMasterTelemetry || topic == topic::kSlaveTelemetry) && v.telemetry) {
+      v.telemetry(m.log_time_ns, topic == topic::kMasterTelemetry, decode<v1::Telemetry>(m));
+    } else if (topic == topic::kAlarms && v.alarm) {
+      v.alarm(m.log_time_ns, decode<v1::Alarm>(m));
+    } else if (topic == topic::kParameterChanges && v.parameter_change) {
+      v.parameter_change(m.log_time_ns, decode<v1::ParameterChangeRecord>(m));
+    } else if (topic == topic::kStability && v.report) {
+      v.report(m.log_time_ns, decode<v1::StabilityReport>(m));
+    } else if (topic == topic::kStatus && v.status) {
+      v.status(m.log_time_ns, decode<v1::SupervisorStatus>(m));
+    }
+  });
+}
+
+void SessionReader::for_each_telemetry(
+    bool master, const std::function<void(std::uint64_t, const v1::Telemetry&)>& fn) const {
+  for (const MessageView& m : messages_on(topic::telemetry(master))) {
+    fn(m.log_time_ns, decode<v1::Telemetry>(m));
+  }
+}
+
+std::optional<v1::SystemConfig> SessionReader::config() const {
+  const std::vector<MessageView> m = messages_on(topic::kConfig);
+  if (m.empty()) return std::nullopt;
+  return decode<v1::SystemConfig>(m.back());
+}
+
+std::vector<RecordedCycle> SessionReader::cycles(bool master) const {
+  const std::string_view topic = topic::telemetry(master);
+  if (!has_topic(topic)) {
+    throw std::runtime_error(path() + ": no channel '" + std::string(topic) +
+                             "' (channels: " + channel_list() + ")");
+  }
+  std::vector<RecordedCycle> cycles;
+  for_each_telemetry(master, [&](std::uint64_t, const v1::Telemetry& t) {
+    for (const v1::CycleRecord& c : t.cycles()) {
+      cycles.push_back({t.session_id(), to_cycle_record(c)});
+    }
+  });
+  return cycles;
+}
+
+std::vector<Stamped<v1::StabilityReport>> SessionReader::reports() const {
+  return stamped_on<v1::StabilityReport>(*this, topic::kStability);
+}
+
+std::vector<Stamped<v1::Alarm>> SessionReader::alarms() const {
+  return stamped_on<v1::Alarm>(*this, topic::kAlarms);
+}
+
+std::vector<Stamped<v1::ParameterChangeRecord>> SessionReader::parameter_changes() const {
+  return stamped_on<v1::ParameterChangeRecord>(*this, topic::kParameterChanges);
+}
+
+std::vector<Stamped<v1::SupervisorStatus>> SessionReader::statuses() const {
+  return stamped_on<v1::SupervisorStatus>(*this, topic::kStatus);
+}
+
+node::CycleRecord to_cycle_record(const v1::CycleRecord& c) {
+  node::CycleRecord r;
+  r.sequence = c.sequence();
+  r.sample_time_ns = c.sample_time_ns();
+  r.mode = to_mode(c.mode());
+  r.position_m = c.position_m();
+  r.velocity_m_per_s = c.velocity_m_per_s();
+  r.force_N = c.force_n();
+  r.command_N = c.command_n();
+  r.peer_sequence = c.peer_sequence();
+  r.peer_position_m = c.peer_position_m();
+  r.peer_age_ns = c.peer_age_ns();
+  r.coupling_weight = c.coupling_weight();
+  r.flags = c.flags();
+  r.wakeup_latency_ns = c.wakeup_latency_ns();
+  r.round_trip_ns = c.round_trip_ns();
+  r.master_sequence = c.master_sequence();
+  r.parameter_change_id = c.parameter_change_id();
+  r.alignment_error_m = c.alignment_error_m();
+  return r;
+}
+
+std::optional<config::LoadedConfig> recorded_config(const SessionReader& session,
+                                                    const std::vector<std::string>& overrides) {
+  const std::optional<v1::SystemConfig> recorded = session.config();
+  if (!recorded) {
+    if (!overrides.empty()) {
+      throw std::runtime_error(session.path() + ": no /config channel to apply --set to");
+    }
+    return std::nullopt;
+  }
+  std::string text;
+  pb::TextFormat::PrintToString(*recorded, &text);
+  return config::load_config_text(text, session.path() + " (/config)", overrides);
+}
+
+std::optional<std::uint64_t> recording_drops(const MessageView& m) {
+  if (m.schema == nullptr) return std::nullopt;
+  const pb::Descriptor* d =
+      pb::DescriptorPool::generated_pool()->FindMessageTypeByName(m.schema->name);
+  const pb::FieldDescriptor* f = d ? d->FindFieldByName("recording_drops") : nullptr;
+  if (f == nullptr || f->cpp_type() != pb::FieldDescriptor::CPPTYPE_UINT64) return std::nullopt;
+  std::unique_ptr<pb::Message> msg(pb::MessageFactory::generated_factory()->GetPrototype(d)->New());
+  if (!msg->ParseFromArray(m.data.data(), static_cast<int>(m.data.size()))) return std::nullopt;
+  return msg->GetReflection()->GetUInt64(*msg, f);
+}
+
+bool is_mcap_file(const std::filesystem::path& path) {
+  std::ifstream f(path, std::ios::binary);
+  char magic[8] = {};
+  f.read(magic, sizeof magic);
+  return f.gcount() == 8 && std::string_view(magic, 8) == std::string_view("\x89MCAP0\r\n", 8);
+}
+
+EmbeddedSchemaDecoder::EmbeddedSchemaDecoder(const Schema& schema) {
+  if (schema.encoding != "protobuf") {
+    throw std::runtime_error("schema '" + schema.name + "' has encoding '" + schema.encoding +
+                             "', not protobuf");
+  }
+  pb::FileDescriptorSet set;
+  if (!set.ParseFromString(schema.data)) {
+    throw std::runtime_error("schema '" + schema.name + "': its FileDescriptorSet does not parse");
+  }
+  for (const pb::FileDescriptorProto& f : set.file()) {
+    if (pool_.BuildFile(f) == nullptr) {
+      throw std::runtime_error("schema '" + schema.name + "': file " + f.name() +
+                               " does not build");
+    }
+  }
+  const pb::Descriptor* d = pool_.FindMessageTypeByName(schema.name);
+  if (d == nullptr) {
+    throw std::runtime_error("schema '" + schema.name + "': no such message in its descriptors");
+  }
+  prototype_ = factory_.GetPrototype(d);
+}
+
+std::unique_ptr<pb::Message> EmbeddedSchemaDecoder::decode(std::string_view data) const {
+  std::unique_ptr<pb::Message> m(prototype_->New());
+  if (!m->ParseFromArray(data.data(), static_cast<int>(data.size()))) return nullptr;
+  return m;
+}
+
+}  // namespace teleop::record

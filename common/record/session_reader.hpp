@@ -1,0 +1,143 @@
+// A recorded session read back (issue 5 "Replay and identification"): the MCAP file the
+// supervisor or `teleopctl simulate --out` writes (one channel per topic of session.hpp, each
+// carrying protobuf messages), as typed values with their log times: the configuration, each
+// node's telemetry and the cycles it recorded, the supervisor's stability reports, alarms,
+// parameter changes and status. Tool code (teleopctl replay and identify, tests): allocates and
+// throws std::runtime_error naming the file.
+#pragma once
+
+#include <google/protobuf/descriptor.h>
+#include <google/protobuf/dynamic_message.h>
+#include <google/protobuf/message.h>
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "common/config/config_loader.hpp"
+#include "common/node/node_core.hpp"
+#include "common/record/mcap_reader.hpp"
+#include "common/record/session.hpp"
+#include "teleop/v1/config.pb.h"
+#include "teleop/v1/supervisor.pb.h"
+#include "teleop/v1/telemetry.pb.h"
+
+namespace teleop::record {
+
+// A message of a session with its log time (ns, on the recorder's clock).
+template <typename T>
+struct Stamped {
+  std::uint64_t log_time_ns{0};
+  T message{};
+};
+
+// One control cycle as a node recorded it: the node's own record type (node_core.hpp), decoded
+// from teleop.v1.CycleRecord, with the session of the Telemetry message that carried it. The
+// record's `reason` is not recorded per cycle (""); a mode this version does not know (or none)
+// reads as disarmed.
+struct RecordedCycle {
+  std::uint64_t session_id{0};
+  node::CycleRecord cycle{};
+};
+
+// What one pass over a session hands out, in log-time order; a callback left empty skips its
+// topic (its messages are then not decoded). `message` sees every message first, typed or not.
+struct SessionVisitor {
+  std::function<void(const MessageView&)> message{};
+  std::function<void(std::uint64_t log_time_ns, bool master, const v1::Telemetry&)> telemetry{};
+  std::function<void(std::uint64_t log_time_ns, const v1::StabilityReport&)> report{};
+  std::function<void(std::uint64_t log_time_ns, const v1::Alarm&)> alarm{};
+  std::function<void(std::uint64_t log_time_ns, const v1::ParameterChangeRecord&)>
+      parameter_change{};
+  std::function<void(std::uint64_t log_time_ns, const v1::SupervisorStatus&)> status{};
+};
+
+class SessionReader {
+ public:
+  // Throws std::runtime_error naming the file: no such file, not MCAP, or damaged or cut short
+  // (then the message says that `teleopctl replay --recover OUT.mcap FILE` keeps every complete
+  // chunk).
+  [[nodiscard]] static SessionReader open(const std::filesystem::path& path);
+
+  // The file underneath (channels, schemas, statistics, raw messages).
+  [[nodiscard]] const McapReader& mcap() const { return reader_; }
+  // The file's path as given to open().
+  [[nodiscard]] std::string path() const { return reader_.path().string(); }
+  [[nodiscard]] bool has_topic(std::string_view topic) const;
+  // The topics of every channel, "a, b, c" in channel-id order ("none" when there is none).
+  [[nodiscard]] std::string channel_list() const;
+  // Log time of the first and of the last message, ns (0 when there is none).
+  [[nodiscard]] std::uint64_t first_log_time_ns() const;
+  [[nodiscard]] std::uint64_t last_log_time_ns() const;
+
+  // Every message of `topic`, in log-time order; empty when there is no such channel.
+  [[nodiscard]] std::vector<MessageView> messages_on(std::string_view topic) const;
+  // `m` as a T. Throws naming the file: its channel carries another type, or it does not decode.
+  template <typename T>
+  [[nodiscard]] T decode(const MessageView& m) const {
+    T t;
+    decode_into(m, t);
+    return t;
+  }
+
+  // One pass over every message (see SessionVisitor); throws as decode() does.
+  void visit(const SessionVisitor& visitor) const;
+  // Every Telemetry message one node published, in log-time order (none without the channel).
+  void for_each_telemetry(bool master,
+                          const std::function<void(std::uint64_t, const v1::Telemetry&)>& fn) const;
+
+  // The configuration (the newest message on /config); nullopt without the channel.
+  [[nodiscard]] std::optional<v1::SystemConfig> config() const;
+  // Every cycle one node recorded (the CycleRecords of its telemetry, in log-time order; flight
+  // records, which repeat cycles, left out). Throws naming the file when there is no such
+  // channel ("FILE: no channel '/slave/telemetry' (channels: ...)").
+  [[nodiscard]] std::vector<RecordedCycle> cycles(bool master) const;
+  [[nodiscard]] std::vector<Stamped<v1::StabilityReport>> reports() const;
+  [[nodiscard]] std::vector<Stamped<v1::Alarm>> alarms() const;
+  [[nodiscard]] std::vector<Stamped<v1::ParameterChangeRecord>> parameter_changes() const;
+  [[nodiscard]] std::vector<Stamped<v1::SupervisorStatus>> statuses() const;
+
+ private:
+  explicit SessionReader(McapReader reader) : reader_(std::move(reader)) {}
+  void decode_into(const MessageView& m, google::protobuf::Message& out) const;
+
+  McapReader reader_;
+};
+
+// The node's cycle record of a recorded teleop.v1.CycleRecord (reason "").
+[[nodiscard]] node::CycleRecord to_cycle_record(const v1::CycleRecord& c);
+
+// The recorded configuration with `overrides` (`--set PATH=VALUE`) applied and validated
+// (config_loader.hpp; messages name "FILE (/config)"); nullopt when the session has no /config,
+// which throws instead when there are overrides to apply.
+[[nodiscard]] std::optional<config::LoadedConfig> recorded_config(
+    const SessionReader& session, const std::vector<std::string>& overrides = {});
+
+// The recorder's drop count a supervisor message carries (the uint64 field recording_drops of
+// its type, found by reflection); nullopt when its type has none or it does not decode.
+[[nodiscard]] std::optional<std::uint64_t> recording_drops(const MessageView& m);
+
+// Whether `path` starts with the MCAP magic (false when it cannot be read).
+[[nodiscard]] bool is_mcap_file(const std::filesystem::path& path);
+
+// Messages of one schema decoded through the FileDescriptorSet the file embeds, so files of
+// other versions decode too. Throws std::runtime_error naming the schema: not protobuf, its
+// descriptors do not parse or build, or they lack the message.
+class EmbeddedSchemaDecoder {
+ public:
+  explicit EmbeddedSchemaDecoder(const Schema& schema);
+  // nullptr when `data` does not decode.
+  [[nodiscard]] std::unique_ptr<google::protobuf::Message> decode(std::string_view data) const;
+
+ private:
+  google::protobuf::DescriptorPool pool_{};
+  google::protobuf::DynamicMessageFactory factory_{&pool_};
+  const google::protobuf::Message* prototype_{nullptr};
+};
+
+}  // namespace teleop::record
