@@ -7,6 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/core/defaults.hpp"
 #include "supervisor/core/configuration_check.hpp"
 #include "supervisor/core/report.hpp"
 
@@ -33,19 +34,28 @@ SupervisorCore::SupervisorCore(const config::LoadedConfig& config, SupervisorOpt
       master_setup_(config::to_node_setup(config, transport::Role::kMaster)),
       slave_setup_(config::to_node_setup(config, transport::Role::kSlave)) {
   const v1::Supervisor& s = config.config.supervisor();
-  report_endpoint_ = s.report_endpoint().empty() ? "tcp://127.0.0.1:5566" : s.report_endpoint();
-  request_endpoint_ = s.request_endpoint().empty() ? "tcp://127.0.0.1:5567" : s.request_endpoint();
+  report_endpoint_ = s.report_endpoint().empty() ? std::string(defaults::kSupervisorReportEndpoint)
+                                                 : s.report_endpoint();
+  request_endpoint_ = s.request_endpoint().empty()
+                          ? std::string(defaults::kSupervisorRequestEndpoint)
+                          : s.request_endpoint();
   const double count_m =
       2.0 * 3.141592653589793 * master_setup_.sim.encoder.metres_per_radian /
       (master_setup_.sim.encoder.counts_per_rev * master_setup_.sim.encoder.transmission_ratio);
-  oscillation_threshold_m_ =
-      s.has_oscillation_threshold_m() ? s.oscillation_threshold_m() : 2.0 * count_m;
-  passivity_threshold_J_ = s.has_passivity_threshold_j() ? s.passivity_threshold_j() : 0.005;
-  passivity_power_threshold_W_ =
-      s.has_passivity_power_threshold_w() ? s.passivity_power_threshold_w() : 0.002;
-  escalation_ns_ =
-      static_cast<std::int64_t>((s.has_escalation_ms() ? s.escalation_ms() : 500.0) * 1e6);
-  change_ramp_ms_ = s.has_change_ramp_ms() ? s.change_ramp_ms() : 200.0;
+  oscillation_threshold_m_ = s.has_oscillation_threshold_m()
+                                 ? s.oscillation_threshold_m()
+                                 : defaults::kOscillationThreshold_counts * count_m;
+  passivity_threshold_J_ =
+      s.has_passivity_threshold_j() ? s.passivity_threshold_j() : defaults::kPassivityThreshold_J;
+  passivity_power_threshold_W_ = s.has_passivity_power_threshold_w()
+                                     ? s.passivity_power_threshold_w()
+                                     : defaults::kPassivityPowerThreshold_W;
+  const double escalation_ms = s.has_escalation_ms()
+                                   ? s.escalation_ms()
+                                   : static_cast<double>(defaults::kEscalation.count());
+  escalation_ns_ = static_cast<std::int64_t>(escalation_ms * 1e6);
+  change_ramp_ms_ = s.has_change_ramp_ms() ? s.change_ramp_ms()
+                                           : static_cast<double>(defaults::kChangeRamp.count());
   // The lowered stiffness is in force once the change applied (0.2 s) and ramped: only
   // evidence from then on may escalate further.
   ladder_ = EscalationLadder(escalation_ns_,
