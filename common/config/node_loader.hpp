@@ -51,7 +51,9 @@ struct NodeSetup {
   UsbIds usb{};
   NodeEndpoints endpoints{};
   NodeKeys keys{};
-  rt::RtSettings rt{};
+  // The loop thread's real-time settings as a configuration asks by default (a bare
+  // rt::RtSettings{} leaves the scheduler and memory alone).
+  rt::RtSettings rt{defaults::kFifoPriority, defaults::kLockMemory, -1, false};
   int cpu_dma_latency_us{defaults::kCpuDmaLatency_us};  // -1: leave alone
   double telemetry_rate_hz{defaults::kTelemetryRate_hz};
   // The node's own check of its configuration at start (control_fingerprint.hpp), filled by
