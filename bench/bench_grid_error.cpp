@@ -1,7 +1,7 @@
 // Run time against error for the human-grid resolution: the maximum stable stiffness found
 // with points_per_axis = n on the default band, against a converged fine grid (finer in
 // force and in every parameter), by the exact method (crossings) and by the old scan (x1.2,
-// bisection, verified halvings). Prints the table the README quotes.
+// bisection, verified halvings). Prints the table docs/benchmarks.md quotes.
 //
 //   build/bench/bench_grid_error [--rates 500,1000]
 #include <fmt/format.h>

@@ -6,7 +6,7 @@
 # Layout under the prefix (/usr for the package):
 #   bin/teleop-master, bin/teleop-slave, bin/teleop-supervisor, bin/teleopctl
 #   share/teleop/examples/...                  the examples/ tree
-#   share/doc/teleop/README.md
+#   share/doc/teleop/README.md, share/doc/teleop/docs/*.md   (the README's links are relative)
 #   lib/systemd/system/teleop-{master,slave,supervisor}.service   (TELEOP_SYSTEMD_UNIT_DIR)
 #   lib/sysusers.d/teleop.conf, lib/tmpfiles.d/teleop.conf, lib/udev/rules.d/70-teleop.rules
 # Nothing goes to /etc: the units read /etc/teleop/{master,slave,supervisor}.textproto, which
@@ -25,6 +25,8 @@ install(TARGETS teleop-master teleop-slave teleop-supervisor teleopctl
         RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/examples/" DESTINATION ${CMAKE_INSTALL_DATADIR}/teleop/examples)
 install(FILES "${PROJECT_SOURCE_DIR}/README.md" DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(DIRECTORY "${PROJECT_SOURCE_DIR}/docs/" DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs
+        FILES_MATCHING PATTERN "*.md")
 install(FILES "${_teleop_deploy}/systemd/teleop-master.service"
               "${_teleop_deploy}/systemd/teleop-slave.service"
               "${_teleop_deploy}/systemd/teleop-supervisor.service"

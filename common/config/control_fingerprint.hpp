@@ -1,5 +1,5 @@
-// The configuration fingerprint (README "Before engage"; issue 14 finding 3): a 64-bit hash of
-// everything the control law and its stability analysis depend on, taken from the typed,
+// The configuration fingerprint (docs/nodes.md "Before engage"; issue 14 finding 3): a 64-bit hash
+// of everything the control law and its stability analysis depend on, taken from the typed,
 // validated parameters (defaults applied), never from the text. So the same values written
 // differently (field order, 600 or 6e2 or 600.0, a default written out or left absent,
 // comments) give the same fingerprint, and a change of any control-relevant value gives another.

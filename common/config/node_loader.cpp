@@ -261,7 +261,7 @@ NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
   // Both sides' sections are checked by either node: one file, one verdict.
   (void)one_node_setup(config, role == Role::kMaster ? Role::kSlave : Role::kMaster);
   NodeSetup out = one_node_setup(config, role);
-  // README "Before engage": what the peer and the supervisor compare before coupling.
+  // docs/nodes.md "Before engage": what the peer and the supervisor compare before coupling.
   out.settings.config_fingerprint = fingerprint(control_fields(
       to_teleop_params(config), out.settings, config.config.experiment().allow_unstable()));
   return out;

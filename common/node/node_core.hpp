@@ -67,7 +67,7 @@ struct NodeSettings {
   std::chrono::nanoseconds safe_ramp{defaults::kSafeRamp};
   AlignmentParams alignment{};
   std::uint64_t session_id{1};
-  // README "Before engage": the fingerprint of this node's control-relevant configuration
+  // docs/nodes.md "Before engage": the fingerprint of this node's control-relevant configuration
   // (config::control_fingerprint; sent to the peer every cycle), and the node's own check of
   // its configuration at start. Arm and engage are refused while the peer's fingerprint or
   // parameter change differs, the peer sent none yet, or `permits_coupling` is false (then
@@ -203,8 +203,8 @@ class NodeCore {
     return reason_.load(std::memory_order_acquire);
   }
   [[nodiscard]] const NodeSettings& settings() const noexcept { return settings_; }
-  // README "Before engage": the newest peer state's fingerprint and parameter change (0: none
-  // yet), and how many arm or engage commands the configuration checks refused (any thread).
+  // docs/nodes.md "Before engage": the newest peer state's fingerprint and parameter change (0:
+  // none yet), and how many arm or engage commands the configuration checks refused (any thread).
   [[nodiscard]] std::uint64_t peer_fingerprint() const noexcept {
     return peer_fingerprint_.load(std::memory_order_acquire);
   }

@@ -46,7 +46,7 @@ struct CycleInputs {
   // or overran in a burst): whatever it knows of the peer and its device is that old, so
   // coupling ends in safe at once, before a command is written. Non-null: why (static).
   const char* own_stall{nullptr};
-  // Why arm and engage are refused now (README "Before engage": the configuration's own
+  // Why arm and engage are refused now (docs/nodes.md "Before engage": the configuration's own
   // analysis, the peer's configuration fingerprint or parameter change); nullptr: permitted.
   // A static string (or one that outlives the machine).
   const char* coupling_refusal{nullptr};

@@ -109,8 +109,8 @@ std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string&
   return r;
 }
 
-// README "Before engage": a refused arm or engage, with both fingerprints (and both parameter
-// changes) named.
+// docs/nodes.md "Before engage": a refused arm or engage, with both fingerprints (and both
+// parameter changes) named.
 std::string coupling_refusal_message(const node::NodeCore& core) {
   const node::NodeSettings& s = core.settings();
   std::string m = std::string(core.last_coupling_refusal()) + " (own configuration fingerprint " +
@@ -124,7 +124,8 @@ std::string coupling_refusal_message(const node::NodeCore& core) {
   return m + ")";
 }
 
-// README "Before engage": the fingerprints and the check at start, in every telemetry message.
+// docs/nodes.md "Before engage": the fingerprints and the check at start, in every telemetry
+// message.
 void fill_configuration(v1::Telemetry& t, const node::NodeCore& core,
                         const config::NodeSetup& setup) {
   t.set_config_fingerprint(setup.settings.config_fingerprint);

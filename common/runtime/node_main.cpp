@@ -46,7 +46,7 @@ std::unique_ptr<device::HapticDevice> open_device(const config::NodeSetup& setup
   return std::move(made.device);
 }
 
-// README "Before engage": the node's own stability analysis of its configuration, here at
+// docs/nodes.md "Before engage": the node's own stability analysis of its configuration, here at
 // start (never on the RT thread, which only reads the outcome). A failed one refuses arm and
 // engage unless experiment.allow_unstable is set, which is then said loudly.
 void apply_configuration_check(const config::LoadedConfig& loaded, config::NodeSetup& setup) {

@@ -32,7 +32,7 @@ struct NodeStateRecord {
   double fixture_force_N{0.0};
   bool clutched{false};
   std::uint32_t fault_flags{0};
-  // README "Before engage": the sender's configuration fingerprint (0: none, an older node)
+  // docs/nodes.md "Before engage": the sender's configuration fingerprint (0: none, an older node)
   // and the guarded parameter change it runs (0: the file's).
   std::uint64_t config_fingerprint{0};
   std::uint64_t parameter_change_id{0};

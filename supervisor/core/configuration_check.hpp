@@ -1,5 +1,5 @@
-// README "Before engage", the supervisor's side: both nodes' configuration fingerprints (from
-// their telemetry) against its own, with the fields that differ named where telemetry shows
+// docs/nodes.md "Before engage", the supervisor's side: both nodes' configuration fingerprints
+// (from their telemetry) against its own, with the fields that differ named where telemetry shows
 // them (ActiveParameters: the gains and the fixture stiffnesses in force); and the experiment
 // banner. Pure functions of what the supervisor received.
 #pragma once

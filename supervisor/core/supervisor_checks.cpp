@@ -60,9 +60,9 @@ void SupervisorCore::check_live() {
   check_findings();
 }
 
-// README "Before engage": both nodes' fingerprints against the supervisor's own; a difference
-// (new or changed) is an alarm naming the fingerprints and, where telemetry shows them, the
-// fields.
+// docs/nodes.md "Before engage": both nodes' fingerprints against the supervisor's own; a
+// difference (new or changed) is an alarm naming the fingerprints and, where telemetry shows them,
+// the fields.
 void SupervisorCore::check_configurations() {
   ApprovedConfiguration approved;
   approved.change_id = change_id_;

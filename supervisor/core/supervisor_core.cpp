@@ -571,7 +571,7 @@ void SupervisorCore::fill_status(v1::SupervisorStatus& s, bool may_command) cons
   fill_configuration_status(s);
 }
 
-// README "Before engage": the fingerprints, each node's own check, the experiment banner.
+// docs/nodes.md "Before engage": the fingerprints, each node's own check, the experiment banner.
 void SupervisorCore::fill_configuration_status(v1::SupervisorStatus& s) const {
   s.set_config_fingerprint(master_setup_.settings.config_fingerprint);
   s.set_configuration_mismatch(configuration_mismatch_);

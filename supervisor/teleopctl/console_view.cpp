@@ -275,7 +275,7 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
     header = pad(header, static_cast<std::size_t>(cols) - clock.size()) + clock;
   }
   lines.push_back(header);
-  // README "Before engage": an experiment arming what the analysis refuses, and nodes whose
+  // docs/nodes.md "Before engage": an experiment arming what the analysis refuses, and nodes whose
   // configurations differ, above everything else.
   if (!s.experiment_banner().empty()) lines.push_back("!! " + s.experiment_banner());
   if (!s.configuration_mismatch().empty()) {

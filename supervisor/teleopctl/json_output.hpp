@@ -1,4 +1,4 @@
-// The JSON documents `teleopctl analyze` prints (fields documented in the README).
+// The JSON documents `teleopctl analyze` prints (fields documented in docs/analyze.md).
 #pragma once
 
 #include <nlohmann/json.hpp>

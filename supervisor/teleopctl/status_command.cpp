@@ -187,7 +187,7 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
       out << text << "\n";
       return kExitOk;
     }
-    // README "Before engage": the experiment banner and any configuration mismatch first.
+    // docs/nodes.md "Before engage": the experiment banner and any configuration mismatch first.
     if (!s.experiment_banner().empty()) out << s.experiment_banner() << "\n";
     if (!s.configuration_mismatch().empty()) {
       out << "CONFIGURATION MISMATCH: " << s.configuration_mismatch() << "\n";

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # deploy.package_contents: builds the Debian package from BUILD_DIR's binaries (cpack with the
 # build's CPackConfig.cmake: no second compilation; scripts/package.sh makes the Release one)
-# and checks what is in it: the four executables, the three units, the examples, the
+# and checks what is in it: the four executables, the three units, the examples, the docs, the
 # sysusers/tmpfiles/udev files, Depends from dpkg-shlibdeps, the maintainer scripts; then
 # extracts it and runs the extracted teleopctl (no LD_LIBRARY_PATH) on the extracted example.
 #
@@ -60,6 +60,10 @@ done
 while IFS= read -r f; do
   grep -qxF "/usr/share/teleop/examples/$f" "$tmp/contents" || fail "examples/$f not in the package"
 done < <(cd "$src/examples" && find . -type f | sed 's|^\./||')
+# Every page of docs/, beside the README that links to them.
+while IFS= read -r f; do
+  grep -qxF "/usr/share/doc/teleop/docs/$f" "$tmp/contents" || fail "docs/$f not in the package"
+done < <(cd "$src/docs" && find . -type f -name '*.md' | sed 's|^\./||')
 # Nothing in /etc (no conffiles: the administrator writes /etc/teleop/*.textproto).
 if grep -q '^/etc/' "$tmp/contents"; then
   fail "the package installs into /etc: $(grep '^/etc/' "$tmp/contents" | tr '\n' ' ')"

@@ -288,8 +288,8 @@ TEST(HostileEstop, AnEndpointWithNoNodeBehindItDoesNotDelayTheOther) {
   EXPECT_TRUE(r.slave_ns.has_value()) << r.out;
 }
 
-// The three cases, ten times each: the figures for the README (p50 and max per case), from
-// the e-stop's send and from the command (teleopctl's start-up included).
+// The three cases, ten times each: the figures for docs/supervisor.md "E-stop" (p50 and max per
+// case), from the e-stop's send and from the command (teleopctl's start-up included).
 TEST(HostileEstopBench, TenEstopsPerCaseAllWithin50msFromTheNodesTelemetry) {
   LiveSystem sys;
   ASSERT_TRUE(sys.up()) << sys.logs();

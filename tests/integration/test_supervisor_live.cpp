@@ -748,7 +748,7 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
       example_with_endpoints("scenes/paddles_slave_fixture_unstable.textproto", ports, record_dir);
   ASSERT_FALSE(text.empty());
   text += "round_trip_delay_samples: 3\n";
-  // The nodes refuse to arm what their own analysis calls unstable (README "Before engage");
+  // The nodes refuse to arm what their own analysis calls unstable (docs/nodes.md "Before engage");
   // this test is that experiment, by name.
   text += "experiment { allow_unstable: true }\n";
   System sys(dir, text);

@@ -278,7 +278,7 @@ TEST(TwoHosts, TheSupervisorMeasuresTheRoundTripAcrossTheLinkAndLowersTheLimitTo
   }
 }
 
-// The README's walk-through from two fresh machines to an engaged teleoperator, on two
+// docs/deploy.md's walk-through from two fresh machines to an engaged teleoperator, on two
 // namespaces with the example's own addresses (192.168.50.10 and .20): keys from
 // `teleopctl keygen`, pasted into examples/two_machines/system.textproto in place of its
 // placeholders, the file otherwise as shipped (CURVE on every link); the slave's host runs

@@ -1,4 +1,4 @@
-// The configuration fingerprint (README "Before engage"): canonical (the same values written
+// The configuration fingerprint (docs/nodes.md "Before engage"): canonical (the same values written
 // differently give the same fingerprint) and complete (a change of any control-relevant field
 // gives another; the list of those fields is looped over, so a field added to the set without
 // a change here fails), and blind to what is not control-relevant (endpoints, scene, RT).

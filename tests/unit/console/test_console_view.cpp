@@ -149,7 +149,7 @@ TEST(ConsoleScreen, EightyByTwentyFourShowsNodesStabilityRecorderAndKeys) {
   EXPECT_EQ(lines.front().find("NO SUMMARY"), std::string::npos);
 }
 
-// README "Before engage": an experiment flag that arms what the analysis refuses, and
+// docs/nodes.md "Before engage": an experiment flag that arms what the analysis refuses, and
 // nodes whose configurations differ, are said right under the header, whatever else is shown.
 TEST(ConsoleScreen, TheExperimentBannerAndAConfigurationMismatchAreRightUnderTheHeader) {
   ConsoleView v;

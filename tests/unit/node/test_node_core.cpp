@@ -334,7 +334,7 @@ TEST(NodeCore, ASecondChangePostedDuringARampWaitsForItsOwnSequence) {
   EXPECT_DOUBLE_EQ(a.slave_fixture.stiffness_N_per_m, 200.0);
 }
 
-// README "Before engage" (issue 14 finding 3): arm and engage need the peer's fingerprint,
+// docs/nodes.md "Before engage" (issue 14 finding 3): arm and engage need the peer's fingerprint,
 // equal to this node's, the same parameter change on both, and this node's own check passed.
 NodeSettings slave_with(std::uint64_t fingerprint) {
   NodeSettings s = settings(Role::kSlave);

@@ -147,7 +147,7 @@ TEST(NodeStateMachine, AnOwnStallSendsAligningEngagedAndClutchedSafeAtOnce) {
 namespace teleop::node {
 namespace {
 
-// README "Before engage": a configuration refusal (the node's own analysis, or the peer's
+// docs/nodes.md "Before engage": a configuration refusal (the node's own analysis, or the peer's
 // fingerprint) refuses arm and engage, says why, and leaves the mode alone.
 TEST(NodeStateMachine, ConfigurationRefusalRefusesArmAndEngage) {
   static const char* const kWhy = "arm and engage refused: configuration fingerprint differs";

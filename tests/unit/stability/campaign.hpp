@@ -106,7 +106,7 @@ struct Case {
   Side side{Side::kSlave};
 };
 
-// The structure rule of the README ("Decoupled loops are analysed alone"), restated here so
+// The structure rule of docs/analyze.md ("Decoupled loops are analysed alone"), restated here so
 // the reference picks its polynomial from the specification, not from the engine.
 inline Structure expected_structure(const TeleopParams& p, bool master_wall_used,
                                     bool slave_wall_used) {
@@ -405,7 +405,7 @@ inline TeleopParams random_params(Rng& rng, double rate_lo, double rate_hi, int 
   g.kfm = rng.chance(0.3) ? rng.uniform(0.0, 2.0) : 0.0;  // does not enter the spectrum
   p.scaling = rng.chance(0.3) ? Scaling{1.0, 1.0}
                               : Scaling{rng.log_uniform(0.2, 5.0), rng.log_uniform(0.2, 5.0)};
-  // Mostly bilateral; the decoupled structures of the README one in ten each.
+  // Mostly bilateral; the decoupled structures of docs/analyze.md one in ten each.
   const int structure = rng.integer(0, 9);
   if (structure == 0) {  // master unactuated: the slave alone
     g.kpm = g.kdm = g.kvm = 0.0;
@@ -856,7 +856,7 @@ struct LimitResult {
   bool engine_stable_where_ref_unstable{false};
   VerdictCheck at_engine_check{VerdictCheck::kAgreeOutside};
   // The reference is stable at the engine's limit but finds an unstable window below it: the
-  // engine's x1.2 scan stepped over it (a limit the README states).
+  // engine's x1.2 scan stepped over it (a limit docs/stability-limits.md states).
   bool window_missed{false};
   // The reference is stable one tolerance above the engine's limit by more than twice the
   // engine's error bounds there.

@@ -38,7 +38,7 @@ TEST(Campaign, EigenvaluesDampingAndVerdictsAgreeWithTheReferenceWithinTheEngine
     ++checks[static_cast<std::size_t>(r.check)];
     (r.ref_marginal ? marginal : (r.ref_verdict == Verdict::kStable ? stable : unstable))++;
 
-    // The reference polynomial is picked by the README's structure rule.
+    // The reference polynomial is picked by docs/analyze.md's structure rule.
     EXPECT_EQ(r.engine_structure, r.expected) << what;
     EXPECT_EQ(r.engine.verdict, r.engine.spectrum.verdict) << what;  // one human
     // Every engine mode is a root of the reference; what is left over is structural (0).

@@ -1,6 +1,6 @@
-// The supervisor's comparison of the nodes' configuration fingerprints with its own (README
-// "Before engage"): silent when all agree, and otherwise naming every fingerprint and the
-// fields telemetry shows to differ.
+// The supervisor's comparison of the nodes' configuration fingerprints with its own
+// (docs/nodes.md "Before engage"): silent when all agree, and otherwise naming every fingerprint
+// and the fields telemetry shows to differ.
 #include <gtest/gtest.h>
 
 #include "supervisor/core/configuration_check.hpp"

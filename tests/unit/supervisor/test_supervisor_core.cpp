@@ -1,7 +1,7 @@
 // The supervisor's decisions with a fake clock and fake nodes, no processes and no sockets
 // (issue 16): the escalation ladder on its own, then SupervisorCore driven by synthetic
 // telemetry. Expected times come from the ladder's specification (supervisor_core.hpp,
-// escalation.hpp, README "Supervision"): a finding acts after escalation_ms (500 ms default),
+// escalation.hpp, docs/supervisor.md): a finding acts after escalation_ms (500 ms default),
 // the lowered stiffness is in force after the change's 0.2 s apply delay plus its 200 ms ramp,
 // the oscillation window is 2 x 0.5 s, the checks run every 100 ms. Expected stiffnesses come
 // from the analyser (common/stability), not from the core: at a round trip of 8 samples the

@@ -151,7 +151,7 @@ TEST(RoundTripEstimator, EchoMinusHoldTimeInWholeSamples) {
 }  // namespace
 }  // namespace teleop::transport
 
-// README "Before engage": the configuration fingerprint (field 16) and the parameter change
+// docs/nodes.md "Before engage": the configuration fingerprint (field 16) and the parameter change
 // (17) travel with every state, and the checksum covers them although they are numbered above
 // it: flipping a byte of the fingerprint must not pass as another fingerprint.
 namespace teleop::transport {
