@@ -12,7 +12,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "teleop/v1/node_state.pb.h"
 

@@ -22,7 +22,7 @@
 #include "common/config/resimulation_loader.hpp"
 #include "common/core/defaults.hpp"
 #include "common/record/mcap_reader.hpp"
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 #include "common/scene/resimulate.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/replay_live.hpp"

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "common/core/defaults.hpp"
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 
 namespace teleop::ctl {
 

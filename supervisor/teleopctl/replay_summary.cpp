@@ -9,7 +9,7 @@
 #include <ostream>
 #include <string>
 
-#include "common/record/session_stats.hpp"
+#include "common/session/session_stats.hpp"
 
 namespace teleop::ctl {
 namespace {

@@ -7,7 +7,7 @@
 #include <iosfwd>
 #include <nlohmann/json.hpp>
 
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 
 namespace teleop::ctl {
 

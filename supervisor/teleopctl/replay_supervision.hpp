@@ -15,7 +15,7 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/core/teleop_params.hpp"
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 #include "supervisor/core/monitors.hpp"
 #include "supervisor/core/status_builder.hpp"
 #include "teleop/v1/supervisor.pb.h"

@@ -1,4 +1,4 @@
-// The session library (common/record/session_reader.hpp, session_stats.hpp) on files written by
+// The session library (common/session/session_reader.hpp, session_stats.hpp) on files written by
 // the live session recorder (make_session_recorder_at): every typed value read back is checked
 // against the value the test wrote, never against the reader's own output.
 #include <gtest/gtest.h>
@@ -12,9 +12,9 @@
 #include <vector>
 
 #include "common/record/session.hpp"
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 #include "common/record/session_recorder.hpp"
-#include "common/record/session_stats.hpp"
+#include "common/session/session_stats.hpp"
 #include "tests/unit/record/record_test_util.hpp"
 
 namespace teleop::record {

@@ -1,4 +1,4 @@
-#include "common/record/session_reader.hpp"
+#include "common/session/session_reader.hpp"
 
 #include <google/protobuf/descriptor.pb.h>
 #include <google/protobuf/text_format.h>

@@ -1,4 +1,4 @@
-#include "common/record/session_stats.hpp"
+#include "common/session/session_stats.hpp"
 
 #include <algorithm>
 #include <cmath>
