@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "common/record/session.hpp"
-#include "common/session/session_reader.hpp"
 #include "common/record/session_recorder.hpp"
+#include "common/session/session_reader.hpp"
 #include "common/session/session_stats.hpp"
 #include "tests/unit/record/record_test_util.hpp"
 
