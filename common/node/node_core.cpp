@@ -9,9 +9,6 @@ namespace {
 
 using transport::Role;
 
-// teleop.v1.NodeMode values (node_state.proto): DISARMED = 1 ... FAULT = 7.
-int wire_mode(Mode m) noexcept { return static_cast<int>(m) + 1; }
-
 bool peer_coupling(int wire) noexcept {
   return wire == wire_mode(Mode::kAligning) || wire == wire_mode(Mode::kEngaged) ||
          wire == wire_mode(Mode::kClutched);

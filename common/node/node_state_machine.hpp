@@ -12,6 +12,14 @@
 namespace teleop::node {
 
 enum class Mode : std::uint8_t { kDisarmed, kArmed, kAligning, kEngaged, kClutched, kSafe, kFault };
+// The mode on the wire and in telemetry: teleop.v1.NodeMode (node_state.proto) numbers the
+// same modes from 1 (DISARMED = 1 ... FAULT = 7; 0 is unspecified). Written once, here.
+[[nodiscard]] constexpr int wire_mode(Mode m) noexcept { return static_cast<int>(m) + 1; }
+// The mode of a wire value; an unknown or unspecified one reads as disarmed.
+[[nodiscard]] constexpr Mode mode_from_wire(int wire) noexcept {
+  return wire >= 1 && wire <= wire_mode(Mode::kFault) ? static_cast<Mode>(wire - 1)
+                                                      : Mode::kDisarmed;
+}
 enum class Command : std::uint8_t {
   kNone,
   kArm,

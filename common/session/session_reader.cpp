@@ -13,13 +13,8 @@ namespace {
 
 namespace pb = google::protobuf;
 
-// node::Mode of a teleop.v1.NodeMode (node_state.proto: DISARMED = 1 ... FAULT = 7, in the
-// order of node::Mode); unspecified or unknown: disarmed.
-node::Mode to_mode(v1::NodeMode wire) {
-  const int index = static_cast<int>(wire) - 1;
-  if (index < 0 || index > static_cast<int>(node::Mode::kFault)) return node::Mode::kDisarmed;
-  return static_cast<node::Mode>(index);
-}
+// node::Mode of a teleop.v1.NodeMode (node_state_machine.hpp); unspecified or unknown: disarmed.
+node::Mode to_mode(v1::NodeMode wire) { return node::mode_from_wire(static_cast<int>(wire)); }
 
 template <typename T>
 std::vector<Stamped<T>> stamped_on(const SessionReader& session, std::string_view topic) {

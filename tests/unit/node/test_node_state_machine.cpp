@@ -200,3 +200,22 @@ TEST(NodeStateMachine, ConfigurationRefusalRefusesArmAndEngage) {
 
 }  // namespace
 }  // namespace teleop::node
+
+namespace teleop::node {
+namespace {
+
+// The one mapping between node::Mode and the wire's teleop.v1.NodeMode, against the numbers
+// node_state.proto gives (DISARMED = 1 ... FAULT = 7, 0 unspecified), read from the .proto.
+TEST(WireMode, EveryModeHasTheProtoNumberAndBackAndUnknownReadsAsDisarmed) {
+  const std::pair<Mode, int> proto[] = {
+      {Mode::kDisarmed, 1}, {Mode::kArmed, 2}, {Mode::kAligning, 3}, {Mode::kEngaged, 4},
+      {Mode::kClutched, 5}, {Mode::kSafe, 6},  {Mode::kFault, 7}};
+  for (const auto& [mode, number] : proto) {
+    EXPECT_EQ(wire_mode(mode), number);
+    EXPECT_EQ(mode_from_wire(number), mode);
+  }
+  for (const int unknown : {0, -1, 8, 1000}) EXPECT_EQ(mode_from_wire(unknown), Mode::kDisarmed);
+}
+
+}  // namespace
+}  // namespace teleop::node
