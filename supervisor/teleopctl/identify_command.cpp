@@ -354,6 +354,144 @@ std::string identify_usage() {
          "  --help           this text\n";
 }
 
+namespace {
+
+// The runs of every file, stacked, each named after its file.
+struct LoadedRuns {
+  std::vector<stability::Series> runs;
+  std::vector<std::string> names;
+  std::size_t short_runs = 0;  // stretches of a session file too short to fit (left out)
+};
+
+LoadedRuns load_runs(const IdentifyArgs& a) {
+  LoadedRuns l;
+  for (const std::string& file : a.files) {
+    if (!is_mcap_file(file)) {
+      l.runs.push_back(read_series_csv(file, a.columns));
+      l.names.push_back(file);
+      continue;
+    }
+    if (a.custom_columns || a.columns.rate_hz > 0.0 || a.columns.time != "time_s") {
+      throw std::runtime_error(
+          fmt::format("{}: a session file: --position, --force, --held-force, --time and --rate "
+                      "are for CSV files",
+                      file));
+    }
+    McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options);
+    for (std::size_t i = 0; i < m.runs.size(); ++i) {
+      l.runs.push_back(std::move(m.runs[i]));
+      l.names.push_back(m.names[i]);
+    }
+    l.short_runs += m.short_runs;
+  }
+  return l;
+}
+
+// stability::identify, with the file behind "run N" named in its errors.
+stability::IdentifyResult identify_runs(const LoadedRuns& l,
+                                        const stability::IdentifyOptions& options) {
+  try {
+    return stability::identify(l.runs, options);
+  } catch (const std::invalid_argument& e) {
+    std::string message = e.what();
+    for (std::size_t i = l.names.size(); i-- > 0;) {
+      const std::string tag = fmt::format("run {}:", i + 1);
+      const std::size_t at = message.find(tag);
+      if (at != std::string::npos) {
+        message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, l.names[i]));
+        break;
+      }
+    }
+    throw std::runtime_error(message);
+  }
+}
+
+// What run_identify reports.
+struct IdentifyReport {
+  std::optional<std::string> side;  // none: a CSV with custom columns and no --device
+  stability::IdentifyResult result;
+  std::vector<std::string> run_names;
+  bool valid = false;  // a mass and damping a device can have
+  std::vector<std::string> warnings;
+  std::string line;  // the configuration line to paste
+};
+
+std::vector<std::string> identify_warnings(const stability::IdentifyResult& r, bool valid,
+                                           std::size_t short_runs) {
+  std::vector<std::string> warnings;
+  if (!valid) {
+    warnings.push_back(fmt::format(
+        "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
+        "force's sign and columns",
+        r.mass_kg, r.damping_Ns_per_m));
+  }
+  if (r.r_squared < kPoorFit) {
+    warnings.push_back(fmt::format(
+        "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (friction, "
+        "contact, a missing force column, too little excitation?)",
+        r.r_squared, kPoorFit));
+  }
+  if (short_runs > 0) {
+    warnings.push_back(fmt::format(
+        "{} stretch{} of consecutive cycles too short to fit or motionless left out (sequence "
+        "gaps, restarts, overruns or faults split a session)",
+        short_runs, short_runs == 1 ? "" : "es"));
+  }
+  return warnings;
+}
+
+void print_identify_json(std::ostream& out, const IdentifyReport& rep,
+                         const stability::IdentifyOptions& options) {
+  const stability::IdentifyResult& r = rep.result;
+  json j = {{"device", rep.side ? json(*rep.side) : json(nullptr)},
+            {"mass_kg", r.mass_kg},
+            {"damping_Ns_per_m", r.damping_Ns_per_m},
+            {"r_squared", r.r_squared},
+            {"residual_rms_N", r.residual_rms_N},
+            {"samples", r.samples},
+            {"condition_number", r.condition_number},
+            {"smoothing_passes", options.smoothing_passes},
+            {"trim_samples", options.trim_samples},
+            {"smooth_force", options.smooth_force},
+            {"runs", json::array()},
+            {"warnings", rep.warnings},
+            {"config", rep.valid ? json(rep.line) : json(nullptr)}};
+  for (std::size_t i = 0; i < r.runs.size(); ++i) {
+    j["runs"].push_back({{"file", rep.run_names[i]},
+                         {"samples", r.runs[i].samples},
+                         {"r_squared", r.runs[i].r_squared}});
+  }
+  out << j.dump(2) << "\n";
+}
+
+void print_identify_text(std::ostream& out, const IdentifyReport& rep,
+                         const stability::IdentifyOptions& options) {
+  const stability::IdentifyResult& r = rep.result;
+  out << fmt::format("identified {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
+                     rep.side ? *rep.side + " device" : "device", r.runs.size(),
+                     r.runs.size() == 1 ? "" : "s", r.samples, options.smoothing_passes,
+                     options.trim_samples);
+  out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
+  out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
+  out << fmt::format("  r^2               {:.4f} (residual rms {:.3g} N)\n", r.r_squared,
+                     r.residual_rms_N);
+  out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
+  if (r.runs.size() > 1) {
+    for (std::size_t i = 0; i < r.runs.size(); ++i) {
+      out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, rep.run_names[i],
+                         r.runs[i].samples, r.runs[i].r_squared);
+    }
+  }
+  for (const std::string& w : rep.warnings) out << "  warning: " << w << "\n";
+  if (rep.valid) {
+    out << (rep.side ? "configuration to paste:\n"
+                     : "configuration to paste (inside master { } or slave { }):\n")
+        << "  " << rep.line << "\n";
+  }
+}
+
+}  // namespace
+
 int run_identify(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   IdentifyArgs a;
   try {
@@ -369,112 +507,22 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
     return kExitUsage;
   }
   return run_guarded("identify", err, [&] {
-    std::vector<stability::Series> runs;
-    std::vector<std::string> run_names;
-    std::size_t short_runs = 0;
-    for (const std::string& file : a.files) {
-      if (is_mcap_file(file)) {
-        if (a.custom_columns || a.columns.rate_hz > 0.0 || a.columns.time != "time_s") {
-          throw std::runtime_error(fmt::format(
-              "{}: a session file: --position, --force, --held-force, --time and --rate are "
-              "for CSV files",
-              file));
-        }
-        McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options);
-        for (std::size_t i = 0; i < m.runs.size(); ++i) {
-          runs.push_back(std::move(m.runs[i]));
-          run_names.push_back(m.names[i]);
-        }
-        short_runs += m.short_runs;
-      } else {
-        runs.push_back(read_series_csv(file, a.columns));
-        run_names.push_back(file);
-      }
-    }
-    stability::IdentifyResult r;
-    try {
-      r = stability::identify(runs, a.options);
-    } catch (const std::invalid_argument& e) {
-      // Name the file behind "run N".
-      std::string message = e.what();
-      for (std::size_t i = run_names.size(); i-- > 0;) {
-        const std::string tag = fmt::format("run {}:", i + 1);
-        const std::size_t at = message.find(tag);
-        if (at != std::string::npos) {
-          message.replace(at, tag.size(), fmt::format("run {} ({}):", i + 1, run_names[i]));
-          break;
-        }
-      }
-      throw std::runtime_error(message);
-    }
-    const std::optional<std::string> side =
+    LoadedRuns loaded = load_runs(a);
+    IdentifyReport rep;
+    rep.result = identify_runs(loaded, a.options);
+    rep.run_names = std::move(loaded.names);
+    rep.side =
         a.custom_columns ? a.device : std::optional<std::string>(a.device.value_or("master"));
-    const bool valid = r.mass_kg > 0.0 && r.damping_Ns_per_m >= 0.0;
-    std::vector<std::string> warnings;
-    if (!valid) {
-      warnings.push_back(fmt::format(
-          "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
-          "force's sign and columns",
-          r.mass_kg, r.damping_Ns_per_m));
-    }
-    if (r.r_squared < kPoorFit) {
-      warnings.push_back(fmt::format(
-          "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (friction, "
-          "contact, a missing force column, too little excitation?)",
-          r.r_squared, kPoorFit));
-    }
-    if (short_runs > 0) {
-      warnings.push_back(fmt::format(
-          "{} stretch{} of consecutive cycles too short to fit or motionless left out (sequence "
-          "gaps, restarts, overruns or faults split a session)",
-          short_runs, short_runs == 1 ? "" : "es"));
-    }
-    const std::string line = config_line(side, r.mass_kg, r.damping_Ns_per_m);
+    rep.valid = rep.result.mass_kg > 0.0 && rep.result.damping_Ns_per_m >= 0.0;
+    rep.warnings = identify_warnings(rep.result, rep.valid, loaded.short_runs);
+    rep.line = config_line(rep.side, rep.result.mass_kg, rep.result.damping_Ns_per_m);
     if (a.json) {
-      json j = {{"device", side ? json(*side) : json(nullptr)},
-                {"mass_kg", r.mass_kg},
-                {"damping_Ns_per_m", r.damping_Ns_per_m},
-                {"r_squared", r.r_squared},
-                {"residual_rms_N", r.residual_rms_N},
-                {"samples", r.samples},
-                {"condition_number", r.condition_number},
-                {"smoothing_passes", a.options.smoothing_passes},
-                {"trim_samples", a.options.trim_samples},
-                {"smooth_force", a.options.smooth_force},
-                {"runs", json::array()},
-                {"warnings", warnings},
-                {"config", valid ? json(line) : json(nullptr)}};
-      for (std::size_t i = 0; i < r.runs.size(); ++i) {
-        j["runs"].push_back({{"file", run_names[i]},
-                             {"samples", r.runs[i].samples},
-                             {"r_squared", r.runs[i].r_squared}});
-      }
-      out << j.dump(2) << "\n";
+      print_identify_json(out, rep, a.options);
     } else {
-      out << fmt::format("identified {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
-                         side ? *side + " device" : "device", r.runs.size(),
-                         r.runs.size() == 1 ? "" : "s", r.samples, a.options.smoothing_passes,
-                         a.options.trim_samples);
-      out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
-      out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
-      out << fmt::format("  r^2               {:.4f} (residual rms {:.3g} N)\n", r.r_squared,
-                         r.residual_rms_N);
-      out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
-      if (r.runs.size() > 1) {
-        for (std::size_t i = 0; i < r.runs.size(); ++i) {
-          out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, run_names[i],
-                             r.runs[i].samples, r.runs[i].r_squared);
-        }
-      }
-      for (const std::string& w : warnings) out << "  warning: " << w << "\n";
-      if (valid) {
-        out << (side ? "configuration to paste:\n"
-                     : "configuration to paste (inside master { } or slave { }):\n")
-            << "  " << line << "\n";
-      }
+      print_identify_text(out, rep, a.options);
     }
-    if (!valid) {
-      err << "teleopctl identify: " << warnings.front() << "\n";
+    if (!rep.valid) {
+      err << "teleopctl identify: " << rep.warnings.front() << "\n";
       return kExitError;
     }
     return kExitOk;
