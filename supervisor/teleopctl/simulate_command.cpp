@@ -85,6 +85,40 @@ constexpr std::size_t kCyclesPerMessage = 20;
   return cfg.human ? t.output.human_force_N : t.output.environment_force_N;
 }
 
+// The simulation's rows, by column name.
+class Rows {
+ public:
+  explicit Rows(const scene::SimulationResult& r) : r_(r), n_cols_(r.columns.size()) {}
+  [[nodiscard]] std::size_t column(const char* name) const {
+    for (std::size_t i = 0; i < n_cols_; ++i) {
+      if (r_.columns[i] == name) return i;
+    }
+    throw std::logic_error(fmt::format("simulation rows have no column '{}'", name));
+  }
+  [[nodiscard]] std::size_t count() const { return n_cols_ == 0 ? 0 : r_.rows.size() / n_cols_; }
+  [[nodiscard]] double at(std::size_t row, std::size_t c) const {
+    return r_.rows[row * n_cols_ + c];
+  }
+
+ private:
+  const scene::SimulationResult& r_;
+  std::size_t n_cols_;
+};
+
+// The lockstep simulator's start (lockstep.cpp): at rest, or at the static equilibrium.
+struct LockstepStart {
+  double master_m;
+  double slave_m;
+};
+
+LockstepStart lockstep_start(const scene::SceneSetup& setup) {
+  if (!setup.equilibrium_perturbation_m) {
+    return {setup.master.initial_position_m, setup.slave.initial_position_m};
+  }
+  const scene::Equilibrium eq = scene::static_equilibrium(setup.teleop, setup.equilibrium_push_N);
+  return {eq.master_m, eq.slave_m + *setup.equilibrium_perturbation_m};
+}
+
 // The lockstep rows as a live session would have recorded them (session_recorder.cpp's
 // topics and types): /config, /supervisor/stability at log time 0, then /master/telemetry and
 // /slave/telemetry, kCyclesPerMessage cycles per message, logged at the end of the last cycle's
@@ -96,134 +130,151 @@ constexpr std::size_t kCyclesPerMessage = 20;
 // from the sensed positions; the command it wrote, held over [kT, (k+1)T) (the master's
 // actuator is driven by -F_am); the peer state of that sample: the slave's at once, the
 // master's round_trip_delay_samples late.
-void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
-                        const scene::SceneSetup& setup, const scene::SimulationResult& r) {
-  const std::size_t n_cols = r.columns.size();
-  auto col = [&](const char* name) {
-    for (std::size_t i = 0; i < n_cols; ++i) {
-      if (r.columns[i] == name) return i;
-    }
-    throw std::logic_error(fmt::format("simulation rows have no column '{}'", name));
-  };
-  const std::size_t c_xm = col("master_sensed_m");
-  const std::size_t c_xs = col("slave_sensed_m");
-  const std::size_t c_fam = col("master_force_N");
-  const std::size_t c_fas = col("slave_force_N");
-  const std::size_t c_fh = col("human_force_N");
-  const std::size_t c_fe = col("environment_force_N");
-  const std::size_t rows = n_cols == 0 ? 0 : r.rows.size() / n_cols;
-  auto at = [&](std::size_t row, std::size_t c) { return r.rows[row * n_cols + c]; };
-
-  const TeleopParams& p = setup.teleop;
-  const double rate = p.sample_rate_hz;
-  const std::int64_t period_ns = std::llround(1e9 / rate);
-  const std::chrono::nanoseconds period{period_ns};
-  const std::size_t delay = static_cast<std::size_t>(p.round_trip_delay_samples);
-  // The lockstep simulator's start (lockstep.cpp): at rest, or at the static equilibrium.
-  double master0 = setup.master.initial_position_m;
-  double slave0 = setup.slave.initial_position_m;
-  if (setup.equilibrium_perturbation_m) {
-    const scene::Equilibrium eq = scene::static_equilibrium(p, setup.equilibrium_push_N);
-    master0 = eq.master_m;
-    slave0 = eq.slave_m + *setup.equilibrium_perturbation_m;
+class SessionFile {
+ public:
+  SessionFile(const std::string& path, const scene::SceneSetup& setup,
+              const scene::SimulationResult& r)
+      : p_(setup.teleop),
+        rows_(r),
+        c_xm_(rows_.column("master_sensed_m")),
+        c_xs_(rows_.column("slave_sensed_m")),
+        c_fam_(rows_.column("master_force_N")),
+        c_fas_(rows_.column("slave_force_N")),
+        c_fh_(rows_.column("human_force_N")),
+        c_fe_(rows_.column("environment_force_N")),
+        period_ns_(std::llround(1e9 / p_.sample_rate_hz)),
+        period_s_(1.0 / p_.sample_rate_hz),
+        delay_(static_cast<std::size_t>(p_.round_trip_delay_samples)),
+        round_trip_ns_(static_cast<std::int64_t>(delay_) * period_ns_),
+        start_(lockstep_start(setup)),
+        master_f0_(
+            initial_force_N(setup.master, std::chrono::nanoseconds{period_ns_}, start_.master_m)),
+        slave_f0_(
+            initial_force_N(setup.slave, std::chrono::nanoseconds{period_ns_}, start_.slave_m)),
+        master_velocity_(period_s_, setup.law.velocity_cutoff_hz),
+        slave_velocity_(period_s_, setup.law.velocity_cutoff_hz),
+        master_session_(0x5349'4D00'0000'0000ULL ^ (2 * setup.seed + 1)),
+        slave_session_(0x5349'4D00'0000'0000ULL ^ (2 * setup.seed + 2)),
+        writer_(path, writer_options()) {
+    master_velocity_.reset(start_.master_m);
+    slave_velocity_.reset(start_.slave_m);
+    config_ch_ = channel(v1::SystemConfig::descriptor(), "/config");
+    report_ch_ = channel(v1::StabilityReport::descriptor(), "/supervisor/stability");
+    master_ch_ = channel(v1::Telemetry::descriptor(), "/master/telemetry");
+    slave_ch_ = channel(v1::Telemetry::descriptor(), "/slave/telemetry");
   }
-  const double master_f0 = initial_force_N(setup.master, period, master0);
-  const double slave_f0 = initial_force_N(setup.slave, period, slave0);
-  const double period_s = 1.0 / rate;
-  control::VelocityEstimator master_velocity(period_s, setup.law.velocity_cutoff_hz);
-  control::VelocityEstimator slave_velocity(period_s, setup.law.velocity_cutoff_hz);
-  master_velocity.reset(master0);
-  slave_velocity.reset(slave0);
 
-  record::WriterOptions options;
-  options.library = "teleop-record (teleopctl simulate)";
-  // Offline: chunks by size only, so the same scene gives the same bytes.
-  options.max_chunk_age = std::chrono::nanoseconds::max();
-  record::McapWriter writer(path, options);
+  // /config and /supervisor/stability at log time 0.
+  void write_start(const config::LoadedConfig& cfg) {
+    write(config_ch_, 0, cfg.config.SerializeAsString());
+    write(report_ch_, 0, start_report(p_).SerializeAsString());
+  }
+
+  // Every row, kCyclesPerMessage cycles to a message on each node's telemetry.
+  void write_telemetry() {
+    v1::Telemetry mt;
+    v1::Telemetry st;
+    const std::size_t rows = rows_.count();
+    for (std::size_t k = 0; k < rows; ++k) {
+      if (k % kCyclesPerMessage == 0) {
+        start_message(mt, true);
+        start_message(st, false);
+      }
+      add_cycles(k, mt, st);
+      if ((k + 1) % kCyclesPerMessage == 0 || k + 1 == rows) {
+        const std::int64_t now = static_cast<std::int64_t>(k) * period_ns_ + period_ns_;
+        finish_message(mt, true, k + 1, now);
+        finish_message(st, false, k + 1, now);
+        write(master_ch_, now, mt.SerializeAsString());
+        write(slave_ch_, now, st.SerializeAsString());
+      }
+    }
+  }
+
+  void close() {
+    if (!writer_.close()) throw std::runtime_error(writer_.error());
+  }
+
+ private:
+  static record::WriterOptions writer_options() {
+    record::WriterOptions options;
+    options.library = "teleop-record (teleopctl simulate)";
+    // Offline: chunks by size only, so the same scene gives the same bytes.
+    options.max_chunk_age = std::chrono::nanoseconds::max();
+    return options;
+  }
+
   // One schema per type, as the live recorder keeps them.
-  std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas;
-  auto channel = [&](const google::protobuf::Descriptor* d, const char* topic) {
-    auto it = schemas.find(d);
-    if (it == schemas.end()) {
-      it = schemas.emplace(d, writer.add_schema(record::protobuf_schema(d))).first;
+  std::uint16_t channel(const google::protobuf::Descriptor* d, const char* topic) {
+    auto it = schemas_.find(d);
+    if (it == schemas_.end()) {
+      it = schemas_.emplace(d, writer_.add_schema(record::protobuf_schema(d))).first;
     }
-    return writer.add_channel(record::protobuf_channel(it->second, topic));
-  };
-  const std::uint16_t config_ch = channel(v1::SystemConfig::descriptor(), "/config");
-  const std::uint16_t report_ch =
-      channel(v1::StabilityReport::descriptor(), "/supervisor/stability");
-  const std::uint16_t master_ch = channel(v1::Telemetry::descriptor(), "/master/telemetry");
-  const std::uint16_t slave_ch = channel(v1::Telemetry::descriptor(), "/slave/telemetry");
-  auto write = [&](std::uint16_t ch, std::int64_t log_time_ns, const std::string& bytes) {
-    if (!writer.write(ch, static_cast<std::uint64_t>(log_time_ns), bytes)) {
-      throw std::runtime_error(writer.error());
-    }
-  };
-  write(config_ch, 0, cfg.config.SerializeAsString());
-  write(report_ch, 0, start_report(p).SerializeAsString());
+    return writer_.add_channel(record::protobuf_channel(it->second, topic));
+  }
 
-  const std::uint64_t seed = setup.seed;
-  const std::uint64_t master_session = 0x5349'4D00'0000'0000ULL ^ (2 * seed + 1);
-  const std::uint64_t slave_session = 0x5349'4D00'0000'0000ULL ^ (2 * seed + 2);
-  const std::int64_t round_trip_ns = static_cast<std::int64_t>(delay) * period_ns;
-  auto start = [&](v1::Telemetry& t, bool master) {
+  void write(std::uint16_t ch, std::int64_t log_time_ns, const std::string& bytes) {
+    if (!writer_.write(ch, static_cast<std::uint64_t>(log_time_ns), bytes)) {
+      throw std::runtime_error(writer_.error());
+    }
+  }
+
+  void start_message(v1::Telemetry& t, bool master) const {
     t.Clear();
-    t.set_session_id(master ? master_session : slave_session);
+    t.set_session_id(master ? master_session_ : slave_session_);
     t.set_role(master ? v1::MASTER : v1::SLAVE);
     t.set_mode(v1::ENGAGED);
     t.set_mode_reason("simulated (teleopctl simulate, lockstep)");
     t.set_device("sim");
     v1::ActiveParameters* a = t.mutable_active();
-    *a->mutable_gains() = supervisor::to_proto(p.gains);
-    a->set_master_fixture_stiffness_n_per_m(p.master_fixture.stiffness_N_per_m);
-    a->set_slave_fixture_stiffness_n_per_m(p.slave_fixture.stiffness_N_per_m);
+    *a->mutable_gains() = supervisor::to_proto(p_.gains);
+    a->set_master_fixture_stiffness_n_per_m(p_.master_fixture.stiffness_N_per_m);
+    a->set_slave_fixture_stiffness_n_per_m(p_.slave_fixture.stiffness_N_per_m);
     a->set_ramp_progress(1.0);
-  };
-  auto finish = [&](v1::Telemetry& t, bool master, std::size_t cycles_so_far, std::int64_t now) {
+  }
+
+  void finish_message(v1::Telemetry& t, bool master, std::size_t cycles_so_far,
+                      std::int64_t now) const {
     t.set_sent_time_ns(now);
     v1::LoopStats* l = t.mutable_loop();
-    l->set_period_s(period_s);
+    l->set_period_s(period_s_);
     l->set_cycles(cycles_so_far);
     v1::LinkStats* k = t.mutable_link();
-    k->set_accepted(master ? cycles_so_far : (cycles_so_far > delay ? cycles_so_far - delay : 0));
-    k->set_round_trip_ns(round_trip_ns);
-    k->set_round_trip_p50_ns(round_trip_ns);
-    k->set_round_trip_p99_ns(round_trip_ns);
-    k->set_round_trip_samples(static_cast<std::int32_t>(delay));
-    k->set_one_way_latency_ns(round_trip_ns / 2);
-    k->set_peer_session_id(master ? slave_session : master_session);
-    k->set_peer_age_ns(master ? 0 : round_trip_ns);
-  };
-  v1::Telemetry mt;
-  v1::Telemetry st;
-  for (std::size_t k = 0; k < rows; ++k) {
-    if (k % kCyclesPerMessage == 0) {
-      start(mt, true);
-      start(st, false);
-    }
+    k->set_accepted(master ? cycles_so_far : (cycles_so_far > delay_ ? cycles_so_far - delay_ : 0));
+    k->set_round_trip_ns(round_trip_ns_);
+    k->set_round_trip_p50_ns(round_trip_ns_);
+    k->set_round_trip_p99_ns(round_trip_ns_);
+    k->set_round_trip_samples(static_cast<std::int32_t>(delay_));
+    k->set_one_way_latency_ns(round_trip_ns_ / 2);
+    k->set_peer_session_id(master ? slave_session_ : master_session_);
+    k->set_peer_age_ns(master ? 0 : round_trip_ns_);
+  }
+
+  // Cycle k of each node.
+  void add_cycles(std::size_t k, v1::Telemetry& mt, v1::Telemetry& st) {
     const std::uint64_t seq = k + 1;
-    const std::int64_t time_ns = static_cast<std::int64_t>(k) * period_ns;
-    const double xm = at(k, c_xm);
-    const double xs = at(k, c_xs);
+    const std::int64_t time_ns = static_cast<std::int64_t>(k) * period_ns_;
+    const double xm = rows_.at(k, c_xm_);
+    const double xs = rows_.at(k, c_xs_);
     // The slave's view of the master: its state `delay` samples ago (the lockstep's in-flight
     // buffer starts with the master's initial position).
-    const bool have_master = k >= delay;
-    const double xm_seen = have_master ? at(k - delay, c_xm) : master0;
-    const std::uint64_t master_seq_seen = have_master ? k - delay + 1 : 0;
+    const bool have_master = k >= delay_;
+    const double xm_seen = have_master ? rows_.at(k - delay_, c_xm_) : start_.master_m;
+    const std::uint64_t master_seq_seen = have_master ? k - delay_ + 1 : 0;
 
     v1::CycleRecord* c = mt.add_cycles();
     c->set_sequence(seq);
     c->set_sample_time_ns(time_ns);
     c->set_mode(v1::ENGAGED);
     c->set_position_m(xm);
-    c->set_velocity_m_per_s(master_velocity.step(xm));
-    c->set_force_n(k == 0 ? master_f0 : at(k - 1, c_fh));
-    c->set_command_n(0.0 - at(k, c_fam));  // 0.0 -: no negative zero in the CSV
+    c->set_velocity_m_per_s(master_velocity_.step(xm));
+    c->set_force_n(k == 0 ? master_f0_ : rows_.at(k - 1, c_fh_));
+    c->set_command_n(0.0 - rows_.at(k, c_fam_));  // 0.0 -: no negative zero in the CSV
     c->set_peer_sequence(seq);
     c->set_peer_position_m(xs);
     c->set_peer_age_ns(0);
     c->set_coupling_weight(1.0);
-    c->set_round_trip_ns(round_trip_ns);
+    c->set_round_trip_ns(round_trip_ns_);
     c->set_master_sequence(seq);
 
     c = st.add_cycles();
@@ -231,25 +282,51 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
     c->set_sample_time_ns(time_ns);
     c->set_mode(v1::ENGAGED);
     c->set_position_m(xs);
-    c->set_velocity_m_per_s(slave_velocity.step(xs));
-    c->set_force_n(k == 0 ? slave_f0 : at(k - 1, c_fe));
-    c->set_command_n(at(k, c_fas));
+    c->set_velocity_m_per_s(slave_velocity_.step(xs));
+    c->set_force_n(k == 0 ? slave_f0_ : rows_.at(k - 1, c_fe_));
+    c->set_command_n(rows_.at(k, c_fas_));
     c->set_peer_sequence(master_seq_seen);
     c->set_peer_position_m(xm_seen);
-    c->set_peer_age_ns(round_trip_ns);
+    c->set_peer_age_ns(round_trip_ns_);
     c->set_coupling_weight(1.0);
-    c->set_round_trip_ns(round_trip_ns);
+    c->set_round_trip_ns(round_trip_ns_);
     c->set_master_sequence(master_seq_seen);
-
-    if ((k + 1) % kCyclesPerMessage == 0 || k + 1 == rows) {
-      const std::int64_t now = time_ns + period_ns;
-      finish(mt, true, k + 1, now);
-      finish(st, false, k + 1, now);
-      write(master_ch, now, mt.SerializeAsString());
-      write(slave_ch, now, st.SerializeAsString());
-    }
   }
-  if (!writer.close()) throw std::runtime_error(writer.error());
+
+  const TeleopParams& p_;
+  Rows rows_;
+  std::size_t c_xm_;
+  std::size_t c_xs_;
+  std::size_t c_fam_;
+  std::size_t c_fas_;
+  std::size_t c_fh_;
+  std::size_t c_fe_;
+  std::int64_t period_ns_;
+  double period_s_;
+  std::size_t delay_;
+  std::int64_t round_trip_ns_;
+  LockstepStart start_;
+  double master_f0_;
+  double slave_f0_;
+  control::VelocityEstimator master_velocity_;
+  control::VelocityEstimator slave_velocity_;
+  std::uint64_t master_session_;
+  std::uint64_t slave_session_;
+  // Opened last: nothing is written when the rows or the setup are unusable.
+  record::McapWriter writer_;
+  std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas_{};
+  std::uint16_t config_ch_{0};
+  std::uint16_t report_ch_{0};
+  std::uint16_t master_ch_{0};
+  std::uint16_t slave_ch_{0};
+};
+
+void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
+                        const scene::SceneSetup& setup, const scene::SimulationResult& r) {
+  SessionFile file(path, setup, r);
+  file.write_start(cfg);
+  file.write_telemetry();
+  file.close();
 }
 
 void write_plot(const std::string& path, const scene::SimulationResult& r) {
@@ -297,17 +374,10 @@ std::string simulate_usage() {
 
 SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
   SimulateOptions o;
-  ArgCursor c(args);
-  while (c.next()) {
+  parse_file_command_args(args, {o.scene_path, o.overrides, o.json}, [&](ArgCursor& c) {
     const std::string& a = c.arg();
     auto value = [&](const char* flag) -> const std::string& { return c.value(flag); };
-    if (a == "--json") {
-      o.json = true;
-    } else if (a == "--set") {
-      o.overrides.push_back(value("--set"));
-    } else if (a.rfind("--set=", 0) == 0) {
-      o.overrides.push_back(a.substr(6));
-    } else if (a == "--duration") {
+    if (a == "--duration") {
       const std::string& v = value("--duration");
       const double d = parse_number(v, "--duration");
       if (!(d > 0.0)) {
@@ -326,14 +396,11 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
       o.out_path = value("--out");
     } else if (a == "--plot") {
       o.plot_path = value("--plot");
-    } else if (!a.empty() && a[0] == '-') {
-      throw UsageError(fmt::format("unknown option '{}'", a));
-    } else if (o.scene_path.empty()) {
-      o.scene_path = a;
     } else {
-      throw UsageError(fmt::format("unexpected argument '{}'", a));
+      return false;
     }
-  }
+    return true;
+  });
   if (o.scene_path.empty()) throw UsageError("missing SCENE");
   return o;
 }
