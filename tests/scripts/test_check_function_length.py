@@ -130,10 +130,16 @@ class Functions(unittest.TestCase):
             extern "C" {
             int c_api(void) { return 0; }
             }
+            template <typename T>
+            void Outer<T>::name(T x) { use(x); }
+            template <>
+            int twice<int>(int x) { return 2 * x; }
+            const auto kGeneric = []<class T>(T x) { return x; };
             """
         self.assertEqual(set(found(src)), {
             "Foo::operator==", "operator()", "Foo::~Foo", "make", "keep_running", "get",
-            "Foo::operator bool", "on_interrupt", "c_api"})
+            "Foo::operator bool", "on_interrupt", "c_api", "Outer::name", "twice",
+            "kGeneric (lambda)"})
         self.assertEqual(found(src)["keep_running"], (5, 4))
 
     def test_braces_in_comments_literals_and_directives_are_ignored(self):
@@ -176,6 +182,16 @@ class CommandLine(unittest.TestCase):
             self.assertEqual(status, 0)
             self.assertIn("known exception", out)
             self.assertIn(f"exception {path}:gone matches no function", out)
+
+
+    def test_unbalanced_brackets_fail_the_file(self):
+        with tempfile.TemporaryDirectory() as d:
+            path = os.path.join(d, "a.cpp")
+            with open(path, "w") as f:
+                f.write("#ifdef A\nvoid f(int a) {\n#else\nvoid f() {\n#endif\n}\n")
+            status, out = self.run_main("120", path)
+            self.assertEqual(status, 1)
+            self.assertIn(f"{path}:2: unbalanced bracket", out)
 
 
 if __name__ == "__main__":
