@@ -184,6 +184,98 @@ ChunkView parse_chunk(const std::filesystem::path& path, const Frame& f) {
   return v;
 }
 
+// The Chunk record a Chunk Index points at (file offset `at`), checked as parse_chunk does.
+ChunkView indexed_chunk(const std::filesystem::path& path, std::string_view file,
+                        std::uint64_t at) {
+  const Frame f = frame_at(file, static_cast<std::size_t>(at), 0);
+  if (f.op != static_cast<std::uint8_t>(Op::kChunk)) {
+    bad(path, f.offset, "Chunk Index points at " + op_name(f.op) + ", not a Chunk");
+  }
+  return parse_chunk(path, f);
+}
+
+void parse_header(const Frame& f, Header& h) {
+  Cursor c(f.content, f.offset + mcap::kRecordPrefix);
+  h.profile = std::string{c.string()};
+  h.library = std::string{c.string()};
+}
+
+// The schemas, channels and message times of data records (one record, or a chunk's), each
+// checked against the definitions before it; they count once all of them are good.
+struct DataRecords {
+  std::map<std::uint16_t, Schema> schemas;
+  std::map<std::uint16_t, Channel> channels;
+  std::vector<std::pair<std::uint16_t, std::uint64_t>> times;  // (channel, log time) a Message
+};
+
+// Adds a Schema, Channel or Message record to `into` (other records are not data); throws
+// McapError for a channel or message naming what is not defined before it (in `schemas` and
+// `channels`, or earlier in `into`).
+void read_data_record(const std::filesystem::path& path, const Frame& f,
+                      const std::map<std::uint16_t, Schema>& schemas,
+                      const std::map<std::uint16_t, Channel>& channels, DataRecords& into) {
+  switch (static_cast<Op>(f.op)) {
+    case Op::kSchema: {
+      Schema s = parse_schema(f);
+      if (s.id != 0) into.schemas[s.id] = std::move(s);
+      break;
+    }
+    case Op::kChannel: {
+      Channel ch = parse_channel(f);
+      if (ch.schema_id != 0 && !schemas.contains(ch.schema_id) &&
+          !into.schemas.contains(ch.schema_id)) {
+        bad(path, f.offset,
+            "Channel " + std::to_string(ch.id) + " names schema " + std::to_string(ch.schema_id) +
+                ", not defined before it");
+      }
+      into.channels[ch.id] = std::move(ch);
+      break;
+    }
+    case Op::kMessage: {
+      const RawMessage m = parse_message(f);
+      if (!channels.contains(m.channel_id) && !into.channels.contains(m.channel_id)) {
+        bad(path, f.offset,
+            "Message on channel " + std::to_string(m.channel_id) + ", not defined before it");
+      }
+      into.times.emplace_back(m.channel_id, m.log_time);
+      break;
+    }
+    default:
+      break;
+  }
+}
+
+void count_message(Statistics& stats, std::uint16_t channel, std::uint64_t time) {
+  stats.message_start_time =
+      stats.message_count == 0 ? time : std::min(stats.message_start_time, time);
+  stats.message_end_time = std::max(stats.message_end_time, time);
+  ++stats.message_count;
+  ++stats.channel_message_counts[channel];
+}
+
+// The index of a chunk the scan read whole: the times the chunk holds, not the ones its header
+// claims (a header whose start lies after its messages would otherwise put them out of
+// log-time order).
+ChunkIndex index_of_chunk(const Frame& f, const ChunkView& v,
+                          const std::vector<std::pair<std::uint16_t, std::uint64_t>>& times) {
+  ChunkIndex ci{};
+  ci.message_start_time = v.start;
+  ci.message_end_time = v.end;
+  if (!times.empty()) {
+    ci.message_start_time = times.front().second;
+    ci.message_end_time = times.front().second;
+    for (const auto& [channel, time] : times) {
+      ci.message_start_time = std::min(ci.message_start_time, time);
+      ci.message_end_time = std::max(ci.message_end_time, time);
+    }
+  }
+  ci.chunk_start_offset = f.offset;
+  ci.chunk_length = f.end() - f.offset;
+  ci.compressed_size = v.records.size();
+  ci.uncompressed_size = v.records.size();
+  return ci;
+}
+
 // Calls fn(frame) for each record in `bytes`; throws Truncated on a record cut short.
 template <typename Fn>
 void for_each_record(std::string_view bytes, std::uint64_t base, Fn&& fn) {
@@ -203,15 +295,16 @@ McapReader::~McapReader() = default;
 
 std::uint64_t McapReader::file_size() const { return file_.size(); }
 
-McapReader McapReader::open(const std::filesystem::path& path) {
-  McapReader r;
-  r.path_ = path;
-  r.map_ = map_file(path);
-  r.file_ = std::string_view{static_cast<const char*>(r.map_->addr), r.map_->size};
-  const std::string_view file = r.file_;
-  if (file.size() < mcap::kMagic.size() || file.substr(0, mcap::kMagic.size()) != mcap::kMagic) {
+McapReader::McapReader(const std::filesystem::path& path)
+    : path_(path), map_(map_file(path)), file_(static_cast<const char*>(map_->addr), map_->size) {
+  if (file_.size() < mcap::kMagic.size() || file_.substr(0, mcap::kMagic.size()) != mcap::kMagic) {
     bad(path, 0, "not an MCAP file (no magic)");
   }
+}
+
+McapReader McapReader::open(const std::filesystem::path& path) {
+  McapReader r(path);
+  const std::string_view file = r.file_;
   const std::size_t minimum = 2 * mcap::kMagic.size() + mcap::kFooterRecord;
   if (file.size() < minimum || file.substr(file.size() - mcap::kMagic.size()) != mcap::kMagic) {
     bad(path, file.size(),
@@ -235,9 +328,7 @@ McapReader McapReader::open(const std::filesystem::path& path) {
     if (head.op != static_cast<std::uint8_t>(Op::kHeader)) {
       bad(path, head.offset, "first record is " + op_name(head.op) + ", not Header");
     }
-    Cursor c(head.content, head.offset + mcap::kRecordPrefix);
-    r.header_.profile = std::string{c.string()};
-    r.header_.library = std::string{c.string()};
+    parse_header(head, r.header_);
   } catch (const Truncated& t) {
     bad(path, t.offset, std::string("Header: ") + t.what());
   }
@@ -350,212 +441,165 @@ void McapReader::read_summary(std::uint64_t summary_start, std::uint64_t summary
 }
 
 McapReader McapReader::recover(const std::filesystem::path& path) {
-  McapReader r;
-  r.path_ = path;
-  r.map_ = map_file(path);
-  r.file_ = std::string_view{static_cast<const char*>(r.map_->addr), r.map_->size};
-  if (r.file_.size() < mcap::kMagic.size() ||
-      r.file_.substr(0, mcap::kMagic.size()) != mcap::kMagic) {
-    bad(path, 0, "not an MCAP file (no magic)");
-  }
+  McapReader r(path);
   r.scan(true);
   return r;
 }
 
-void McapReader::scan(bool recovering) {
+// scan(): the data section read record by record into the reader's tables. Damage is an
+// McapError naming the offset; when recovering, the scan stops there instead and the report
+// says why.
+struct McapReader::Scan {
+  McapReader& reader;
+  bool recovering;
   RecoveryReport report{};
-  report.file_size = file_.size();
-  report.data_end = mcap::kMagic.size();
   Statistics stats{};
-  std::size_t pos = mcap::kMagic.size();
-  bool first = true;
-  const auto stop = [&](std::uint64_t offset, const std::string& why) {
-    if (!recovering) bad(path_, offset, why);
-    report.stopped = path_.string() + ": offset " + std::to_string(offset) + ": " + why;
-  };
-  const auto count = [&](std::uint16_t channel, std::uint64_t time) {
-    stats.message_start_time =
-        stats.message_count == 0 ? time : std::min(stats.message_start_time, time);
-    stats.message_end_time = std::max(stats.message_end_time, time);
-    ++stats.message_count;
-    ++stats.channel_message_counts[channel];
-  };
-  while (true) {
-    if (pos == file_.size()) {
+
+  Scan(McapReader& r, bool recover) : reader(r), recovering(recover) {
+    report.file_size = reader.file_.size();
+    report.data_end = mcap::kMagic.size();
+  }
+
+  void stop(std::uint64_t offset, const std::string& why) {
+    if (!recovering) bad(reader.path_, offset, why);
+    report.stopped = reader.path_.string() + ": offset " + std::to_string(offset) + ": " + why;
+  }
+
+  // The record at `pos`; none when the scan stopped there.
+  std::optional<Frame> frame(std::size_t pos) {
+    if (pos == reader.file_.size()) {
       stop(pos, "the file ends without a Data End record (cut short)");
-      break;
+      return std::nullopt;
     }
-    Frame f{};
     try {
-      f = frame_at(file_, pos, 0);
+      return frame_at(reader.file_, pos, 0);
     } catch (const Truncated& t) {
       stop(t.offset, t.what());
-      break;
-    }
-    const auto op = static_cast<Op>(f.op);
-    if (first) {
-      first = false;
-      if (op != Op::kHeader) {
-        stop(f.offset, "first record is " + op_name(f.op) + ", not Header");
-        break;
-      }
-      try {
-        Cursor c(f.content, f.offset + mcap::kRecordPrefix);
-        header_.profile = std::string{c.string()};
-        header_.library = std::string{c.string()};
-      } catch (const Truncated& t) {
-        stop(t.offset, std::string("Header: ") + t.what());
-        break;
-      }
-      pos = f.end();
-      report.data_end = pos;
-      continue;
-    }
-    bool end_of_data = false;
-    try {
-      switch (op) {
-        case Op::kSchema: {
-          Schema s = parse_schema(f);
-          if (s.id != 0) schemas_[s.id] = std::move(s);
-          break;
-        }
-        case Op::kChannel: {
-          Channel ch = parse_channel(f);
-          if (ch.schema_id != 0 && !schemas_.contains(ch.schema_id)) {
-            bad(path_, f.offset,
-                "Channel " + std::to_string(ch.id) + " names schema " +
-                    std::to_string(ch.schema_id) + ", not defined before it");
-          }
-          channels_[ch.id] = std::move(ch);
-          break;
-        }
-        case Op::kMessage: {
-          const RawMessage m = parse_message(f);
-          if (!channels_.contains(m.channel_id)) {
-            bad(path_, f.offset,
-                "Message on channel " + std::to_string(m.channel_id) + ", not defined before it");
-          }
-          loose_messages_.push_back(f.offset);
-          count(m.channel_id, m.log_time);
-          ++report.messages;
-          break;
-        }
-        case Op::kChunk: {
-          const ChunkView v = parse_chunk(path_, f);
-          // Schemas and channels of a chunk count only if the whole chunk is good.
-          std::map<std::uint16_t, Schema> new_schemas;
-          std::map<std::uint16_t, Channel> new_channels;
-          std::vector<std::pair<std::uint16_t, std::uint64_t>> times;
-          for_each_record(v.records, v.records_offset, [&](const Frame& inner) {
-            switch (static_cast<Op>(inner.op)) {
-              case Op::kSchema: {
-                Schema s = parse_schema(inner);
-                if (s.id != 0) new_schemas[s.id] = std::move(s);
-                break;
-              }
-              case Op::kChannel: {
-                Channel ch = parse_channel(inner);
-                if (ch.schema_id != 0 && !schemas_.contains(ch.schema_id) &&
-                    !new_schemas.contains(ch.schema_id)) {
-                  bad(path_, inner.offset,
-                      "Channel " + std::to_string(ch.id) + " names schema " +
-                          std::to_string(ch.schema_id) + ", not defined before it");
-                }
-                new_channels[ch.id] = std::move(ch);
-                break;
-              }
-              case Op::kMessage: {
-                const RawMessage m = parse_message(inner);
-                if (!channels_.contains(m.channel_id) && !new_channels.contains(m.channel_id)) {
-                  bad(path_, inner.offset,
-                      "Message on channel " + std::to_string(m.channel_id) +
-                          ", not defined before it");
-                }
-                times.emplace_back(m.channel_id, m.log_time);
-                break;
-              }
-              default:
-                break;
-            }
-          });
-          for (auto& [id, s] : new_schemas) schemas_[id] = std::move(s);
-          for (auto& [id, ch] : new_channels) channels_[id] = std::move(ch);
-          for (const auto& [channel, time] : times) count(channel, time);
-          ChunkIndex ci{};
-          // The times the chunk holds, not the ones its header claims: a header whose start lies
-          // after its messages would otherwise put them out of log-time order.
-          ci.message_start_time = v.start;
-          ci.message_end_time = v.end;
-          if (!times.empty()) {
-            ci.message_start_time = times.front().second;
-            ci.message_end_time = times.front().second;
-            for (const auto& [channel, time] : times) {
-              ci.message_start_time = std::min(ci.message_start_time, time);
-              ci.message_end_time = std::max(ci.message_end_time, time);
-            }
-          }
-          ci.chunk_start_offset = f.offset;
-          ci.chunk_length = f.end() - f.offset;
-          ci.compressed_size = v.records.size();
-          ci.uncompressed_size = v.records.size();
-          chunks_.push_back(std::move(ci));
-          ++report.chunks;
-          report.messages += times.size();
-          break;
-        }
-        case Op::kMessageIndex: {
-          Cursor c(f.content, f.offset + mcap::kRecordPrefix);
-          const auto channel = c.get<std::uint16_t>();
-          if (!chunks_.empty()) {
-            ChunkIndex& last = chunks_.back();
-            if (last.chunk_start_offset + last.chunk_length + last.message_index_length ==
-                f.offset) {
-              last.message_index_offsets[channel] = f.offset;
-              last.message_index_length += f.end() - f.offset;
-            }
-          }
-          break;
-        }
-        case Op::kDataEnd: {
-          data_end_offset_ = f.offset;
-          if (f.content.size() >= 4) {
-            Cursor c(f.content, f.offset + mcap::kRecordPrefix);
-            data_section_crc_ = c.get<std::uint32_t>();
-          }
-          end_of_data = true;
-          break;
-        }
-        case Op::kFooter:
-          // A file without Data End (older writers): the footer ends the data too.
-          end_of_data = true;
-          break;
-        case Op::kHeader:
-          bad(path_, f.offset, "a second Header record");
-        default:
-          if (f.op == 0) bad(path_, f.offset, "invalid opcode 0 (zeroed or damaged bytes)");
-          break;  // attachments, metadata, unknown records: not needed here
-      }
-    } catch (const McapError& e) {
-      if (!recovering) throw;
-      report.stopped = e.what();
-      break;
-    } catch (const Truncated& t) {
-      stop(t.offset, op_name(f.op) + " record at offset " + std::to_string(f.offset) +
-                         " is malformed: " + t.what());
-      break;
-    }
-    pos = static_cast<std::size_t>(f.end());
-    report.data_end = pos;
-    if (end_of_data) {
-      report.complete = true;
-      break;
+      return std::nullopt;
     }
   }
+
+  // The Header record that opens the data; false when the scan stopped there.
+  bool header(std::size_t& pos) {
+    const std::optional<Frame> f = frame(pos);
+    if (!f) return false;
+    if (f->op != static_cast<std::uint8_t>(Op::kHeader)) {
+      stop(f->offset, "first record is " + op_name(f->op) + ", not Header");
+      return false;
+    }
+    try {
+      parse_header(*f, reader.header_);
+    } catch (const Truncated& t) {
+      stop(t.offset, std::string("Header: ") + t.what());
+      return false;
+    }
+    pos = f->end();
+    report.data_end = pos;
+    return true;
+  }
+
+  void run() {
+    std::size_t pos = mcap::kMagic.size();
+    if (!header(pos)) return;
+    while (const std::optional<Frame> f = frame(pos)) {
+      bool end_of_data = false;
+      try {
+        end_of_data = record(*f);
+      } catch (const McapError& e) {
+        if (!recovering) throw;
+        report.stopped = e.what();
+        return;
+      } catch (const Truncated& t) {
+        stop(t.offset, op_name(f->op) + " record at offset " + std::to_string(f->offset) +
+                           " is malformed: " + t.what());
+        return;
+      }
+      pos = static_cast<std::size_t>(f->end());
+      report.data_end = pos;
+      if (end_of_data) {
+        report.complete = true;
+        return;
+      }
+    }
+  }
+
+  // One record after the Header; true when it ends the data.
+  bool record(const Frame& f) {
+    switch (static_cast<Op>(f.op)) {
+      case Op::kSchema:
+      case Op::kChannel:
+      case Op::kMessage: {
+        DataRecords d;
+        read_data_record(reader.path_, f, reader.schemas_, reader.channels_, d);
+        if (!d.times.empty()) reader.loose_messages_.push_back(f.offset);
+        add(d);
+        return false;
+      }
+      case Op::kChunk:
+        chunk(f);
+        return false;
+      case Op::kMessageIndex:
+        message_index(f);
+        return false;
+      case Op::kDataEnd:
+        reader.data_end_offset_ = f.offset;
+        if (f.content.size() >= 4) {
+          Cursor c(f.content, f.offset + mcap::kRecordPrefix);
+          reader.data_section_crc_ = c.get<std::uint32_t>();
+        }
+        return true;
+      case Op::kFooter:
+        // A file without Data End (older writers): the footer ends the data too.
+        return true;
+      case Op::kHeader:
+        bad(reader.path_, f.offset, "a second Header record");
+      default:
+        if (f.op == 0) bad(reader.path_, f.offset, "invalid opcode 0 (zeroed or damaged bytes)");
+        return false;  // attachments, metadata, unknown records: not needed here
+    }
+  }
+
+  // Schemas and channels of a chunk count only if the whole chunk is good.
+  void chunk(const Frame& f) {
+    const ChunkView v = parse_chunk(reader.path_, f);
+    DataRecords d;
+    for_each_record(v.records, v.records_offset, [&](const Frame& inner) {
+      read_data_record(reader.path_, inner, reader.schemas_, reader.channels_, d);
+    });
+    add(d);
+    reader.chunks_.push_back(index_of_chunk(f, v, d.times));
+    ++report.chunks;
+  }
+
+  void add(DataRecords& d) {
+    for (auto& [id, s] : d.schemas) reader.schemas_[id] = std::move(s);
+    for (auto& [id, ch] : d.channels) reader.channels_[id] = std::move(ch);
+    for (const auto& [channel, time] : d.times) count_message(stats, channel, time);
+    report.messages += d.times.size();
+  }
+
+  // A Message Index right after its chunk (or after the chunk's other indexes) joins its index.
+  void message_index(const Frame& f) {
+    Cursor c(f.content, f.offset + mcap::kRecordPrefix);
+    const auto channel = c.get<std::uint16_t>();
+    if (reader.chunks_.empty()) return;
+    ChunkIndex& last = reader.chunks_.back();
+    if (last.chunk_start_offset + last.chunk_length + last.message_index_length == f.offset) {
+      last.message_index_offsets[channel] = f.offset;
+      last.message_index_length += f.end() - f.offset;
+    }
+  }
+};
+
+void McapReader::scan(bool recovering) {
+  Scan scan(*this, recovering);
+  scan.run();
+  Statistics stats = std::move(scan.stats);
   stats.schema_count = static_cast<std::uint16_t>(schemas_.size());
   stats.channel_count = static_cast<std::uint32_t>(channels_.size());
   stats.chunk_count = static_cast<std::uint32_t>(chunks_.size());
   statistics_ = std::move(stats);
-  if (recovering) recovery_ = std::move(report);
+  if (recovering) recovery_ = std::move(scan.report);
 }
 
 void McapReader::for_each_message(Order order,
@@ -594,15 +638,12 @@ void McapReader::for_each_message(Order order,
   const auto load = [&](const Group& g) {
     std::vector<MessageView> out;
     try {
-      const Frame f = frame_at(file_, static_cast<std::size_t>(g.offset), 0);
       if (!g.chunk) {
+        const Frame f = frame_at(file_, static_cast<std::size_t>(g.offset), 0);
         out.push_back(view(parse_message(f), g.offset, g.offset));
         return out;
       }
-      if (f.op != static_cast<std::uint8_t>(Op::kChunk)) {
-        bad(path_, g.offset, "Chunk Index points at " + op_name(f.op) + ", not a Chunk");
-      }
-      const ChunkView c = parse_chunk(path_, f);
+      const ChunkView c = indexed_chunk(path_, file_, g.offset);
       for_each_record(c.records, c.records_offset, [&](const Frame& inner) {
         if (inner.op == static_cast<std::uint8_t>(Op::kMessage)) {
           out.push_back(view(parse_message(inner), g.offset, inner.offset));
@@ -682,11 +723,7 @@ std::vector<std::string> McapReader::validate() const {
   std::vector<std::string> errors;
   for (const ChunkIndex& c : chunks_) {
     try {
-      const Frame f = frame_at(file_, static_cast<std::size_t>(c.chunk_start_offset), 0);
-      if (f.op != static_cast<std::uint8_t>(Op::kChunk)) {
-        bad(path_, f.offset, "Chunk Index points at " + op_name(f.op) + ", not a Chunk");
-      }
-      (void)parse_chunk(path_, f);
+      (void)indexed_chunk(path_, file_, c.chunk_start_offset);
     } catch (const McapError& e) {
       errors.emplace_back(e.what());
     } catch (const Truncated& t) {

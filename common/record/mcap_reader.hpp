@@ -138,7 +138,12 @@ class McapReader {
   struct Mapping;
 
  private:
-  McapReader() = default;
+  // scan(), record by record (in the .cpp).
+  struct Scan;
+
+  // Maps `path`; throws McapError when it cannot, or when the file does not start with the
+  // MCAP magic.
+  explicit McapReader(const std::filesystem::path& path);
   void read_summary(std::uint64_t summary_start, std::uint64_t summary_end);
   void scan(bool recovering);
 

@@ -155,6 +155,185 @@ std::uint64_t random_session_id() {
   return id;
 }
 
+namespace {
+
+// The receiver's link statistics, read by the telemetry thread.
+struct LinkCounters {
+  std::atomic<std::uint64_t> accepted{0};
+  std::array<std::atomic<std::uint64_t>, static_cast<std::size_t>(transport::Rejection::kCount)>
+      rejected{};
+  std::atomic<std::uint64_t> lost{0};
+};
+
+void fill_cycle(v1::CycleRecord& c, const node::CycleRecord& rec) {
+  c.set_sequence(rec.sequence);
+  c.set_sample_time_ns(rec.sample_time_ns);
+  c.set_mode(to_proto(rec.mode));
+  c.set_position_m(rec.position_m);
+  c.set_velocity_m_per_s(rec.velocity_m_per_s);
+  c.set_force_n(rec.force_N);
+  c.set_command_n(rec.command_N);
+  c.set_peer_sequence(rec.peer_sequence);
+  c.set_peer_position_m(rec.peer_position_m);
+  c.set_peer_age_ns(rec.peer_age_ns);
+  c.set_coupling_weight(rec.coupling_weight);
+  c.set_flags(rec.flags);
+  c.set_wakeup_latency_ns(rec.wakeup_latency_ns);
+  c.set_round_trip_ns(rec.round_trip_ns);
+  c.set_master_sequence(rec.master_sequence);
+  c.set_parameter_change_id(rec.parameter_change_id);
+  c.set_alignment_error_m(rec.alignment_error_m);
+}
+
+void fill_active(v1::ActiveParameters& a, const node::ActiveLaw& active) {
+  a.set_change_id(active.change_id);
+  a.set_applied_at_master_sequence(active.applied_at_master_sequence);
+  a.mutable_gains()->set_kpm(active.gains.kpm);
+  a.mutable_gains()->set_kps(active.gains.kps);
+  a.mutable_gains()->set_kdm(active.gains.kdm);
+  a.mutable_gains()->set_kds(active.gains.kds);
+  a.mutable_gains()->set_kvm(active.gains.kvm);
+  a.mutable_gains()->set_kvs(active.gains.kvs);
+  a.mutable_gains()->set_kfm(active.gains.kfm);
+  a.set_master_fixture_stiffness_n_per_m(active.master_fixture.stiffness_N_per_m);
+  a.set_slave_fixture_stiffness_n_per_m(active.slave_fixture.stiffness_N_per_m);
+  a.set_ramp_progress(active.ramp_progress);
+}
+
+void fill_loop_stats(v1::LoopStats& l, const node::LoopSnapshot& stats,
+                     std::chrono::nanoseconds period) {
+  l.set_period_s(std::chrono::duration<double>(period).count());
+  l.set_cycles(stats.cycles);
+  l.set_overruns(stats.overruns);
+  l.set_wakeup_p50_ns(stats.wakeup_p50_ns);
+  l.set_wakeup_p99_ns(stats.wakeup_p99_ns);
+  l.set_wakeup_p999_ns(stats.wakeup_p999_ns);
+  l.set_wakeup_max_ns(stats.wakeup_max_ns);
+  l.set_compute_p50_ns(stats.compute_p50_ns);
+  l.set_compute_p99_ns(stats.compute_p99_ns);
+  l.set_compute_max_ns(stats.compute_max_ns);
+}
+
+void fill_link_stats(v1::LinkStats& k, const LinkCounters& link, const node::LoopSnapshot& stats,
+                     std::chrono::nanoseconds period, const transport::ConnectionCounts& conn) {
+  using R = transport::Rejection;
+  auto rej = [&link](R r) { return link.rejected[static_cast<std::size_t>(r)].load(); };
+  k.set_accepted(link.accepted.load());
+  k.set_rejected_malformed(rej(R::kMalformed));
+  k.set_rejected_non_finite(rej(R::kNonFinite));
+  k.set_rejected_wrong_role(rej(R::kWrongRole));
+  k.set_rejected_stale(rej(R::kStale));
+  k.set_rejected_wrong_session(rej(R::kWrongSession));
+  k.set_lost(link.lost.load());
+  const double expected = static_cast<double>(link.accepted.load() + link.lost.load());
+  k.set_loss_fraction(expected > 0 ? static_cast<double>(link.lost.load()) / expected : 0.0);
+  k.set_round_trip_ns(stats.round_trip_ns);
+  k.set_round_trip_p50_ns(stats.round_trip_p50_ns);
+  k.set_round_trip_p99_ns(stats.round_trip_p99_ns);
+  k.set_round_trip_samples(transport::RoundTripEstimator::samples(
+      std::chrono::nanoseconds(stats.round_trip_ns), period));
+  k.set_one_way_latency_ns(stats.round_trip_ns / 2);
+  k.set_peer_session_id(stats.peer_session_id);
+  k.set_peer_restarts(stats.peer_restarts);
+  k.set_peer_age_ns(stats.peer_age_ns);
+  k.set_connections_accepted(conn.accepted);
+  k.set_connections_closed(conn.closed);
+  k.set_handshakes_failed(conn.handshakes_failed);
+  k.set_handshakes_refused_auth(conn.auth_failed);
+  k.set_connections_cut_over_budget(conn.cut_over_budget);
+}
+
+// The flight recorder: the telemetry thread's ring of the last 10 s of cycles at full rate,
+// handed over once (then started afresh) after a safe or fault mode, or when requested.
+class FlightRecorder {
+ public:
+  explicit FlightRecorder(std::chrono::nanoseconds period)
+      : capacity_(static_cast<std::size_t>(10.0e9 / static_cast<double>(period.count()))) {}
+
+  void keep(const v1::CycleRecord& c) {
+    ring_.push_back(c);
+    while (ring_.size() > capacity_) ring_.pop_front();
+  }
+  // The first safe or fault mode since the last hand-over names the record.
+  void note_mode(node::Mode mode, const char* reason) {
+    if ((mode == node::Mode::kSafe || mode == node::Mode::kFault) && reason_.empty()) {
+      reason_ = std::string(node::to_string(mode)) + ": " + reason;
+    }
+  }
+  void request() {
+    if (reason_.empty()) reason_ = "requested";
+  }
+  void hand_over_into(v1::Telemetry& t) {
+    if (reason_.empty()) return;
+    for (const v1::CycleRecord& c : ring_) *t.add_flight_record() = c;
+    t.set_flight_record_reason(reason_);
+    spdlog::info("flight record handed over: {} cycles ({})", ring_.size(), reason_);
+    reason_.clear();
+  }
+
+ private:
+  std::size_t capacity_;
+  std::deque<v1::CycleRecord> ring_{};
+  std::string reason_{};
+};
+
+void refuse(v1::NodeCommandReply& reply, const std::string& message) {
+  reply.set_ok(false);
+  reply.set_message(message);
+}
+
+// A RETUNE: refused when its change number is not newer than the newest taken (a replayed or
+// reused one could bring back values that no longer hold: the supervisor lowered them since)
+// or a value is unusable; otherwise posted to the loop.
+void apply_retune(node::NodeCore& core, const v1::ParameterUpdate& update,
+                  std::uint64_t& newest_retune_id, v1::NodeCommandReply& reply) {
+  if (update.change_id() != 0 && update.change_id() <= newest_retune_id) {
+    refuse(reply, "parameter update refused: change " + std::to_string(update.change_id()) +
+                      " is not newer than change " + std::to_string(newest_retune_id) +
+                      " already taken (replayed or reused change number)");
+    spdlog::warn("{}", reply.message());
+    return;
+  }
+  std::string why;
+  const std::optional<node::Retune> r = to_retune(update, why);
+  if (!r) {
+    refuse(reply, "parameter update refused: " + why);
+  } else {
+    core.post_retune(*r);
+    newest_retune_id = r->id;
+    reply.set_ok(true);
+    reply.set_message("change " + std::to_string(r->id) + " applies at master sequence " +
+                      std::to_string(r->apply_at_master_sequence));
+  }
+  spdlog::info("RETUNE {}: {}", update.change_id(), reply.message());
+}
+
+// A mode command: posted to the loop, answered once the loop took it and ran one more cycle
+// (so that the reply's mode reflects it), or after 500 ms.
+void apply_mode_command(node::NodeCore& core, node::Command c, v1::NodeCommandReply& reply) {
+  const std::uint64_t refusals = core.coupling_refusals();
+  if (!core.post_command(c)) {
+    refuse(reply, "command queue full");
+    return;
+  }
+  const std::uint64_t ticket = core.commands_posted();
+  const auto deadline = std::chrono::steady_clock::now() + 500ms;
+  while (core.commands_applied() < ticket && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(200us);
+  }
+  // One more cycle so the mode reflects the command.
+  const std::uint32_t cycle = core.state_published().load();
+  const auto until = std::chrono::steady_clock::now() + 100ms;
+  while (core.state_published().load() == cycle && std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(100us);
+  }
+  reply.set_ok(core.commands_applied() >= ticket);
+  if (!reply.ok()) reply.set_message("the loop did not take the command within 500 ms");
+  if (core.coupling_refusals() != refusals) refuse(reply, coupling_refusal_message(core));
+}
+
+}  // namespace
+
 struct NodeApp::Impl {
   zmq::context_t ctx{1};
   std::optional<transport::ZapHandler> zap{};
@@ -162,6 +341,8 @@ struct NodeApp::Impl {
   std::uint64_t newest_retune_id{0};  // the command thread's: the newest change number taken
   transport::LinkSecurity server_security{};
   transport::LinkSecurity client_security{};
+  // SCHED_FIFO priority of the link threads and ZeroMQ's I/O threads (0: none).
+  int link_priority{0};
   std::optional<zmq::socket_t> state_pub{};
   std::optional<zmq::socket_t> state_sub{};
   std::optional<zmq::socket_t> command_rep{};
@@ -175,12 +356,8 @@ struct NodeApp::Impl {
   std::thread commands{};
   std::thread telemetry{};
 
-  // Link statistics the receiver keeps (read by the telemetry thread).
-  std::atomic<std::uint64_t> accepted{0};
-  std::array<std::atomic<std::uint64_t>, static_cast<std::size_t>(transport::Rejection::kCount)>
-      rejected{};
-  std::atomic<std::uint64_t> lost{0};
-  // The flight recorder: the telemetry thread's ring of the last seconds of cycles.
+  LinkCounters link{};
+  // Asks the telemetry thread's flight recorder for its ring.
   std::atomic<bool> flight_request{false};
 };
 
@@ -196,6 +373,15 @@ NodeApp::NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDevice> 
 NodeApp::~NodeApp() { stop(); }
 
 void NodeApp::start() {
+  set_up_link_security();
+  set_link_thread_priority();
+  open_endpoints();
+  hold_cpu_dma_latency();
+  start_link_threads();
+  start_loop();
+}
+
+void NodeApp::set_up_link_security() {
   Impl& m = *impl_;
   // Keys first: a bad key file is a setup error, before anything binds.
   std::optional<transport::CurveKeyPair> own;
@@ -217,6 +403,10 @@ void NodeApp::start() {
   if (!setup_.keys.peer_public_key.empty()) {
     m.client_security.server_public_key = setup_.keys.peer_public_key;
   }
+}
+
+void NodeApp::set_link_thread_priority() {
+  Impl& m = *impl_;
   // The link threads and ZeroMQ's I/O threads run just below the loop (issue 8 "RT priorities
   // per thread"): under load they must not starve, or states queue and conflate away. Set
   // before the first socket starts the I/O threads; refusals are only warnings here.
@@ -227,6 +417,11 @@ void NodeApp::start() {
     m.ctx.set(zmq::ctxopt::thread_sched_policy, SCHED_FIFO);
     m.ctx.set(zmq::ctxopt::thread_priority, link_priority);
   }
+  m.link_priority = link_priority;
+}
+
+void NodeApp::open_endpoints() {
+  Impl& m = *impl_;
   m.zap.emplace(m.ctx);
   m.state_pub.emplace(
       transport::make_state_publisher(m.ctx, setup_.endpoints.state, m.server_security));
@@ -252,301 +447,33 @@ void NodeApp::start() {
       transport::choose_mechanism(setup_.endpoints.command, transport::LinkRole::kServer,
                                   m.server_security) == transport::LinkMechanism::kCurve);
   for (const std::string& w : authority_warnings(m.authority)) spdlog::warn("{}", w);
+}
 
-  if (setup_.cpu_dma_latency_us >= 0) {
-    m.dma.emplace(setup_.cpu_dma_latency_us);
-    if (m.dma->refusal()) {
-      if (setup_.rt.required) {
-        throw std::runtime_error("real-time settings refused (rt.required is set):\n  " +
-                                 *m.dma->refusal());
-      }
-      refused_.push_back(*m.dma->refusal());
+void NodeApp::hold_cpu_dma_latency() {
+  Impl& m = *impl_;
+  if (setup_.cpu_dma_latency_us < 0) return;
+  m.dma.emplace(setup_.cpu_dma_latency_us);
+  if (m.dma->refusal()) {
+    if (setup_.rt.required) {
+      throw std::runtime_error("real-time settings refused (rt.required is set):\n  " +
+                               *m.dma->refusal());
     }
+    refused_.push_back(*m.dma->refusal());
   }
+}
 
+void NodeApp::start_link_threads() {
+  Impl& m = *impl_;
   m.running = true;
-  node::NodeCore& core = *core_;
-  // Sender: one send per loop cycle, woken by the loop's counter (a futex wake, no lock).
-  const rt::RtSettings link_rt{link_priority, false, -1, false};
-  m.sender = std::thread(keep_running("sender", m.running, [&m, &core, link_rt] {
-    if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
-    std::uint32_t seen = core.state_published().load(std::memory_order_acquire);
-    transport::NodeStateRecord state;
-    while (m.running.load()) {
-      core.state_published().wait(seen, std::memory_order_acquire);
-      seen = core.state_published().load(std::memory_order_acquire);
-      if (!m.running.load()) break;
-      if (!core.state_out().read(state)) continue;
-      const std::string bytes = transport::encode(state);
-      // Never throws (a refused send is one state less; the next cycle sends the next one).
-      (void)transport::send_noexcept(*m.state_pub, bytes);
-    }
-  }));
-  // Receiver: every frame that arrived goes through the filter (each one counted); only the
-  // newest accepted state reaches the loop, so it never works through a backlog.
-  m.receiver = std::thread(keep_running("receiver", m.running, [this, &m, &core, link_rt] {
-    if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
-    const Role expected = setup_.settings.role == Role::kMaster ? Role::kSlave : Role::kMaster;
-    transport::PeerStateFilter filter(expected);
-    zmq::message_t frame;
-    while (m.running.load()) {
-      if (!transport::wait_readable(*m.state_sub, 20ms)) continue;
-      std::optional<node::PeerSample> newest;
-      for (transport::Received got;
-           (got = transport::receive_whole(*m.state_sub, frame)).parts > 0;) {
-        const auto arrival = rt::PeriodicLoop::monotonic_now();
-        // A multi-part message is no state: counted as malformed (an empty frame).
-        const auto accepted = filter.accept(
-            got.parts == 1 ? std::string_view(static_cast<const char*>(frame.data()), frame.size())
-                           : std::string_view());
-        if (!accepted) continue;
-        if (accepted->new_session) {
-          spdlog::info("peer {} session {:016x}", expected == Role::kMaster ? "master" : "slave",
-                       accepted->record.session_id);
-        }
-        newest = node::PeerSample{accepted->record, arrival.count()};
-      }
-      if (newest) core.peer_in().write(*newest);
-      for (std::size_t i = 0; i < m.rejected.size(); ++i) {
-        m.rejected[i].store(filter.rejected(static_cast<transport::Rejection>(i)));
-      }
-      m.accepted.store(filter.accepted());
-      m.lost.store(filter.lost());
-    }
-  }));
-  // Commands: apply through the loop, reply with the mode the loop reached.
-  m.commands = std::thread(keep_running("commands", m.running, [this, &m, &core] {
-    while (m.running.load()) {
-      if (!transport::wait_readable(*m.command_rep, 50ms)) continue;
-      zmq::message_t request;
-      // The whole request (every part), so the socket can always answer (issue 14 finding 4:
-      // a 2-part request left the REP mid-request and its reply threw EFSM, aborting the node).
-      const transport::Received got = transport::receive_whole(*m.command_rep, request);
-      if (!got.error.empty()) spdlog::warn("command endpoint: {}", got.error);
-      if (got.parts == 0) continue;
-      v1::NodeCommand cmd;
-      v1::NodeCommandReply reply;
-      reply.set_role(to_proto(setup_.settings.role));
-      if (got.parts != 1) {
-        reply.set_ok(false);
-        reply.set_message("malformed command: " + std::to_string(got.parts) +
-                          " parts (a command is one frame)");
-      } else if (!cmd.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
-        reply.set_ok(false);
-        reply.set_message("malformed command");
-      } else if (const std::string refusal = command_refusal(
-                     m.authority, cmd.kind(), caller_key(request, m.authority.authenticated));
-                 !refusal.empty()) {
-        reply.set_ok(false);
-        reply.set_refused_unauthorized(true);
-        reply.set_message(refusal);
-        spdlog::warn("{}", refusal);
-      } else if (cmd.kind() == v1::NodeCommand::RETUNE && cmd.update().change_id() != 0 &&
-                 cmd.update().change_id() <= m.newest_retune_id) {
-        // Change numbers only grow: a replayed or reused one could bring back values that no
-        // longer hold (the supervisor lowered them since).
-        reply.set_ok(false);
-        reply.set_message("parameter update refused: change " +
-                          std::to_string(cmd.update().change_id()) + " is not newer than change " +
-                          std::to_string(m.newest_retune_id) +
-                          " already taken (replayed or reused change number)");
-        spdlog::warn("{}", reply.message());
-      } else if (cmd.kind() == v1::NodeCommand::STATUS) {
-        reply.set_ok(true);
-      } else if (cmd.kind() == v1::NodeCommand::RETUNE) {
-        std::string why;
-        const std::optional<node::Retune> r = to_retune(cmd.update(), why);
-        if (!r) {
-          reply.set_ok(false);
-          reply.set_message("parameter update refused: " + why);
-        } else {
-          core.post_retune(*r);
-          m.newest_retune_id = r->id;
-          reply.set_ok(true);
-          reply.set_message("change " + std::to_string(r->id) + " applies at master sequence " +
-                            std::to_string(r->apply_at_master_sequence));
-        }
-        spdlog::info("RETUNE {}: {}", cmd.update().change_id(), reply.message());
-      } else if (cmd.kind() == v1::NodeCommand::FLIGHT_RECORD) {
-        m.flight_request.store(true);
-        reply.set_ok(true);
-        reply.set_message("flight record in the next telemetry message");
-      } else if (cmd.kind() == v1::NodeCommand::SHUTDOWN) {
-        shutdown_.store(true);
-        reply.set_ok(true);
-        reply.set_message("shutting down");
-      } else if (const auto c = to_command(cmd.kind())) {
-        const std::uint64_t refusals = core.coupling_refusals();
-        if (!core.post_command(*c)) {
-          reply.set_ok(false);
-          reply.set_message("command queue full");
-        } else {
-          const std::uint64_t ticket = core.commands_posted();
-          const auto deadline = std::chrono::steady_clock::now() + 500ms;
-          while (core.commands_applied() < ticket && std::chrono::steady_clock::now() < deadline) {
-            std::this_thread::sleep_for(200us);
-          }
-          // One more cycle so the mode reflects the command.
-          const std::uint32_t cycle = core.state_published().load();
-          const auto until = std::chrono::steady_clock::now() + 100ms;
-          while (core.state_published().load() == cycle &&
-                 std::chrono::steady_clock::now() < until) {
-            std::this_thread::sleep_for(100us);
-          }
-          reply.set_ok(core.commands_applied() >= ticket);
-          if (!reply.ok()) reply.set_message("the loop did not take the command within 500 ms");
-          if (core.coupling_refusals() != refusals) {
-            reply.set_ok(false);
-            reply.set_message(coupling_refusal_message(core));
-          }
-        }
-        spdlog::info("command {} -> {} ({})", v1::NodeCommand::Kind_Name(cmd.kind()),
-                     node::to_string(core.mode()), core.mode_reason());
-      } else {
-        reply.set_ok(false);
-        reply.set_message("unknown command");
-      }
-      reply.set_mode(to_proto(core.mode()));
-      reply.set_mode_reason(core.mode_reason());
-      reply.set_pid(static_cast<std::uint32_t>(::getpid()));
-      reply.set_session_id(setup_.settings.session_id);
-      const std::string out = reply.SerializeAsString();
-      std::string why;
-      if (!transport::send_noexcept(*m.command_rep, out, zmq::send_flags::dontwait, &why)) {
-        spdlog::warn("command endpoint: reply not sent: {}", why);
-      }
-    }
-  }));
-  // Telemetry: every cycle, batched; mode changes logged.
-  m.telemetry = std::thread(keep_running("telemetry", m.running, [this, &m, &core] {
-    const auto period =
-        std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
-    auto next = std::chrono::steady_clock::now() + period;
-    node::LoopSnapshot stats{};
-    node::ActiveLaw active{};
-    node::Mode last_mode = node::Mode::kDisarmed;
-    v1::Telemetry t;
-    // The flight recorder keeps the last 10 s at full rate.
-    const std::size_t flight_cycles =
-        static_cast<std::size_t>(10.0e9 / static_cast<double>(setup_.settings.period.count()));
-    std::deque<v1::CycleRecord> flight;
-    std::string flight_reason;
-    while (m.running.load()) {
-      std::this_thread::sleep_until(next);
-      next += period;
-      t.Clear();
-      t.set_session_id(setup_.settings.session_id);
-      t.set_role(to_proto(setup_.settings.role));
-      t.set_pid(static_cast<std::uint32_t>(::getpid()));
-      t.set_device(setup_.device_kind == device::DeviceKind::kSim ? "sim" : "usb");
-      while (const auto rec = core.telemetry_out().try_pop()) {
-        v1::CycleRecord* c = t.add_cycles();
-        c->set_sequence(rec->sequence);
-        c->set_sample_time_ns(rec->sample_time_ns);
-        c->set_mode(to_proto(rec->mode));
-        c->set_position_m(rec->position_m);
-        c->set_velocity_m_per_s(rec->velocity_m_per_s);
-        c->set_force_n(rec->force_N);
-        c->set_command_n(rec->command_N);
-        c->set_peer_sequence(rec->peer_sequence);
-        c->set_peer_position_m(rec->peer_position_m);
-        c->set_peer_age_ns(rec->peer_age_ns);
-        c->set_coupling_weight(rec->coupling_weight);
-        c->set_flags(rec->flags);
-        c->set_wakeup_latency_ns(rec->wakeup_latency_ns);
-        c->set_round_trip_ns(rec->round_trip_ns);
-        c->set_master_sequence(rec->master_sequence);
-        c->set_parameter_change_id(rec->parameter_change_id);
-        c->set_alignment_error_m(rec->alignment_error_m);
-        if (rec->mode != last_mode) {
-          spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
-                       rec->reason);
-          if ((rec->mode == node::Mode::kSafe || rec->mode == node::Mode::kFault) &&
-              flight_reason.empty()) {
-            flight_reason = std::string(node::to_string(rec->mode)) + ": " + rec->reason;
-          }
-          last_mode = rec->mode;
-        }
-        flight.push_back(*c);
-        while (flight.size() > flight_cycles) flight.pop_front();
-      }
-      (void)core.stats_out().read(stats);
-      (void)core.active_out().read(active);
-      v1::ActiveParameters* a = t.mutable_active();
-      a->set_change_id(active.change_id);
-      a->set_applied_at_master_sequence(active.applied_at_master_sequence);
-      a->mutable_gains()->set_kpm(active.gains.kpm);
-      a->mutable_gains()->set_kps(active.gains.kps);
-      a->mutable_gains()->set_kdm(active.gains.kdm);
-      a->mutable_gains()->set_kds(active.gains.kds);
-      a->mutable_gains()->set_kvm(active.gains.kvm);
-      a->mutable_gains()->set_kvs(active.gains.kvs);
-      a->mutable_gains()->set_kfm(active.gains.kfm);
-      a->set_master_fixture_stiffness_n_per_m(active.master_fixture.stiffness_N_per_m);
-      a->set_slave_fixture_stiffness_n_per_m(active.slave_fixture.stiffness_N_per_m);
-      a->set_ramp_progress(active.ramp_progress);
-      t.set_mode(to_proto(core.mode()));
-      t.set_mode_reason(core.mode_reason());
-      fill_configuration(t, core, setup_);
-      t.set_sent_time_ns(rt::PeriodicLoop::monotonic_now().count());
-      t.set_cycles_dropped(core.telemetry_out().dropped());
-      v1::LoopStats* l = t.mutable_loop();
-      l->set_period_s(std::chrono::duration<double>(setup_.settings.period).count());
-      l->set_cycles(stats.cycles);
-      l->set_overruns(stats.overruns);
-      l->set_wakeup_p50_ns(stats.wakeup_p50_ns);
-      l->set_wakeup_p99_ns(stats.wakeup_p99_ns);
-      l->set_wakeup_p999_ns(stats.wakeup_p999_ns);
-      l->set_wakeup_max_ns(stats.wakeup_max_ns);
-      l->set_compute_p50_ns(stats.compute_p50_ns);
-      l->set_compute_p99_ns(stats.compute_p99_ns);
-      l->set_compute_max_ns(stats.compute_max_ns);
-      v1::LinkStats* k = t.mutable_link();
-      using R = transport::Rejection;
-      auto rej = [&m](R r) { return m.rejected[static_cast<std::size_t>(r)].load(); };
-      k->set_accepted(m.accepted.load());
-      k->set_rejected_malformed(rej(R::kMalformed));
-      k->set_rejected_non_finite(rej(R::kNonFinite));
-      k->set_rejected_wrong_role(rej(R::kWrongRole));
-      k->set_rejected_stale(rej(R::kStale));
-      k->set_rejected_wrong_session(rej(R::kWrongSession));
-      k->set_lost(m.lost.load());
-      const double expected = static_cast<double>(m.accepted.load() + m.lost.load());
-      k->set_loss_fraction(expected > 0 ? static_cast<double>(m.lost.load()) / expected : 0.0);
-      k->set_round_trip_ns(stats.round_trip_ns);
-      k->set_round_trip_p50_ns(stats.round_trip_p50_ns);
-      k->set_round_trip_p99_ns(stats.round_trip_p99_ns);
-      k->set_round_trip_samples(transport::RoundTripEstimator::samples(
-          std::chrono::nanoseconds(stats.round_trip_ns), setup_.settings.period));
-      k->set_one_way_latency_ns(stats.round_trip_ns / 2);
-      k->set_peer_session_id(stats.peer_session_id);
-      k->set_peer_restarts(stats.peer_restarts);
-      k->set_peer_age_ns(stats.peer_age_ns);
-      const transport::ConnectionCounts conn = m.monitor->counts();
-      k->set_connections_accepted(conn.accepted);
-      k->set_connections_closed(conn.closed);
-      k->set_handshakes_failed(conn.handshakes_failed);
-      k->set_handshakes_refused_auth(conn.auth_failed);
-      k->set_connections_cut_over_budget(conn.cut_over_budget);
-      v1::RtStatus* r = t.mutable_rt();
-      r->set_fifo_priority(setup_.rt.fifo_priority);
-      r->set_memory_locked(setup_.rt.lock_memory);
-      r->set_cpu(setup_.rt.cpu);
-      r->set_cpu_dma_latency_us(m.dma && m.dma->held() ? setup_.cpu_dma_latency_us : -1);
-      for (const std::string& s : refused_) r->add_refused(s);
-      if (m.flight_request.exchange(false) && flight_reason.empty()) flight_reason = "requested";
-      if (!flight_reason.empty()) {
-        // Handed over once, then the recorder starts afresh.
-        for (const v1::CycleRecord& c : flight) *t.add_flight_record() = c;
-        t.set_flight_record_reason(flight_reason);
-        spdlog::info("flight record handed over: {} cycles ({})", flight.size(), flight_reason);
-        flight_reason.clear();
-      }
-      const std::string bytes = t.SerializeAsString();
-      (void)transport::send_noexcept(*m.telemetry_pub, bytes);
-    }
-  }));
+  m.sender = std::thread(keep_running("sender", m.running, [this] { run_state_sender(); }));
+  m.receiver = std::thread(keep_running("receiver", m.running, [this] { run_peer_receiver(); }));
+  m.commands = std::thread(keep_running("commands", m.running, [this] { run_command_server(); }));
+  m.telemetry =
+      std::thread(keep_running("telemetry", m.running, [this] { run_telemetry_publisher(); }));
+}
 
+void NodeApp::start_loop() {
+  Impl& m = *impl_;
   const auto hook = options_.after_step;
   m.loop = std::make_unique<rt::PeriodicLoop>(setup_.settings.period, setup_.rt,
                                               [this, hook](std::chrono::nanoseconds deadline) {
@@ -561,6 +488,184 @@ void NodeApp::start() {
   }
   for (const std::string& s : m.loop->refused()) refused_.push_back(s);
   for (const std::string& s : refused_) spdlog::warn("real-time setting refused: {}", s);
+}
+
+void NodeApp::apply_link_thread_priority() const {
+  const rt::RtSettings link_rt{impl_->link_priority, false, -1, false};
+  if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
+}
+
+// One send per loop cycle, woken by the loop's counter (a futex wake, no lock).
+void NodeApp::run_state_sender() {
+  Impl& m = *impl_;
+  node::NodeCore& core = *core_;
+  apply_link_thread_priority();
+  std::uint32_t seen = core.state_published().load(std::memory_order_acquire);
+  transport::NodeStateRecord state;
+  while (m.running.load()) {
+    core.state_published().wait(seen, std::memory_order_acquire);
+    seen = core.state_published().load(std::memory_order_acquire);
+    if (!m.running.load()) break;
+    if (!core.state_out().read(state)) continue;
+    const std::string bytes = transport::encode(state);
+    // Never throws (a refused send is one state less; the next cycle sends the next one).
+    (void)transport::send_noexcept(*m.state_pub, bytes);
+  }
+}
+
+// Every frame that arrived goes through the filter (each one counted); only the newest
+// accepted state reaches the loop, so it never works through a backlog.
+void NodeApp::run_peer_receiver() {
+  Impl& m = *impl_;
+  node::NodeCore& core = *core_;
+  apply_link_thread_priority();
+  const Role expected = setup_.settings.role == Role::kMaster ? Role::kSlave : Role::kMaster;
+  transport::PeerStateFilter filter(expected);
+  zmq::message_t frame;
+  while (m.running.load()) {
+    if (!transport::wait_readable(*m.state_sub, 20ms)) continue;
+    std::optional<node::PeerSample> newest;
+    for (transport::Received got;
+         (got = transport::receive_whole(*m.state_sub, frame)).parts > 0;) {
+      const auto arrival = rt::PeriodicLoop::monotonic_now();
+      // A multi-part message is no state: counted as malformed (an empty frame).
+      const auto accepted = filter.accept(
+          got.parts == 1 ? std::string_view(static_cast<const char*>(frame.data()), frame.size())
+                         : std::string_view());
+      if (!accepted) continue;
+      if (accepted->new_session) {
+        spdlog::info("peer {} session {:016x}", expected == Role::kMaster ? "master" : "slave",
+                     accepted->record.session_id);
+      }
+      newest = node::PeerSample{accepted->record, arrival.count()};
+    }
+    if (newest) core.peer_in().write(*newest);
+    for (std::size_t i = 0; i < m.link.rejected.size(); ++i) {
+      m.link.rejected[i].store(filter.rejected(static_cast<transport::Rejection>(i)));
+    }
+    m.link.accepted.store(filter.accepted());
+    m.link.lost.store(filter.lost());
+  }
+}
+
+// Applies each command through the loop and replies with the mode the loop reached.
+void NodeApp::run_command_server() {
+  Impl& m = *impl_;
+  node::NodeCore& core = *core_;
+  while (m.running.load()) {
+    if (!transport::wait_readable(*m.command_rep, 50ms)) continue;
+    zmq::message_t request;
+    // The whole request (every part), so the socket can always answer (issue 14 finding 4:
+    // a 2-part request left the REP mid-request and its reply threw EFSM, aborting the node).
+    const transport::Received got = transport::receive_whole(*m.command_rep, request);
+    if (!got.error.empty()) spdlog::warn("command endpoint: {}", got.error);
+    if (got.parts == 0) continue;
+    v1::NodeCommand cmd;
+    v1::NodeCommandReply reply;
+    reply.set_role(to_proto(setup_.settings.role));
+    if (got.parts != 1) {
+      refuse(reply,
+             "malformed command: " + std::to_string(got.parts) + " parts (a command is one frame)");
+    } else if (!cmd.ParseFromArray(request.data(), static_cast<int>(request.size()))) {
+      refuse(reply, "malformed command");
+    } else if (const std::string refusal = command_refusal(
+                   m.authority, cmd.kind(), caller_key(request, m.authority.authenticated));
+               !refusal.empty()) {
+      refuse(reply, refusal);
+      reply.set_refused_unauthorized(true);
+      spdlog::warn("{}", refusal);
+    } else {
+      answer_command(cmd, reply);
+    }
+    reply.set_mode(to_proto(core.mode()));
+    reply.set_mode_reason(core.mode_reason());
+    reply.set_pid(static_cast<std::uint32_t>(::getpid()));
+    reply.set_session_id(setup_.settings.session_id);
+    const std::string out = reply.SerializeAsString();
+    std::string why;
+    if (!transport::send_noexcept(*m.command_rep, out, zmq::send_flags::dontwait, &why)) {
+      spdlog::warn("command endpoint: reply not sent: {}", why);
+    }
+  }
+}
+
+void NodeApp::answer_command(const v1::NodeCommand& cmd, v1::NodeCommandReply& reply) {
+  Impl& m = *impl_;
+  node::NodeCore& core = *core_;
+  if (cmd.kind() == v1::NodeCommand::STATUS) {
+    reply.set_ok(true);
+  } else if (cmd.kind() == v1::NodeCommand::RETUNE) {
+    apply_retune(core, cmd.update(), m.newest_retune_id, reply);
+  } else if (cmd.kind() == v1::NodeCommand::FLIGHT_RECORD) {
+    m.flight_request.store(true);
+    reply.set_ok(true);
+    reply.set_message("flight record in the next telemetry message");
+  } else if (cmd.kind() == v1::NodeCommand::SHUTDOWN) {
+    shutdown_.store(true);
+    reply.set_ok(true);
+    reply.set_message("shutting down");
+  } else if (const auto c = to_command(cmd.kind())) {
+    apply_mode_command(core, *c, reply);
+    spdlog::info("command {} -> {} ({})", v1::NodeCommand::Kind_Name(cmd.kind()),
+                 node::to_string(core.mode()), core.mode_reason());
+  } else {
+    refuse(reply, "unknown command");
+  }
+}
+
+// Every cycle's record, batched at telemetry_rate_hz with the loop and link statistics; mode
+// changes logged.
+void NodeApp::run_telemetry_publisher() {
+  Impl& m = *impl_;
+  node::NodeCore& core = *core_;
+  const auto period =
+      std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
+  auto next = std::chrono::steady_clock::now() + period;
+  node::LoopSnapshot stats{};
+  node::ActiveLaw active{};
+  node::Mode last_mode = node::Mode::kDisarmed;
+  v1::Telemetry t;
+  FlightRecorder flight(setup_.settings.period);
+  while (m.running.load()) {
+    std::this_thread::sleep_until(next);
+    next += period;
+    t.Clear();
+    t.set_session_id(setup_.settings.session_id);
+    t.set_role(to_proto(setup_.settings.role));
+    t.set_pid(static_cast<std::uint32_t>(::getpid()));
+    t.set_device(setup_.device_kind == device::DeviceKind::kSim ? "sim" : "usb");
+    while (const auto rec = core.telemetry_out().try_pop()) {
+      v1::CycleRecord* c = t.add_cycles();
+      fill_cycle(*c, *rec);
+      if (rec->mode != last_mode) {
+        spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
+                     rec->reason);
+        flight.note_mode(rec->mode, rec->reason);
+        last_mode = rec->mode;
+      }
+      flight.keep(*c);
+    }
+    (void)core.stats_out().read(stats);
+    (void)core.active_out().read(active);
+    fill_active(*t.mutable_active(), active);
+    t.set_mode(to_proto(core.mode()));
+    t.set_mode_reason(core.mode_reason());
+    fill_configuration(t, core, setup_);
+    t.set_sent_time_ns(rt::PeriodicLoop::monotonic_now().count());
+    t.set_cycles_dropped(core.telemetry_out().dropped());
+    fill_loop_stats(*t.mutable_loop(), stats, setup_.settings.period);
+    fill_link_stats(*t.mutable_link(), m.link, stats, setup_.settings.period, m.monitor->counts());
+    v1::RtStatus* r = t.mutable_rt();
+    r->set_fifo_priority(setup_.rt.fifo_priority);
+    r->set_memory_locked(setup_.rt.lock_memory);
+    r->set_cpu(setup_.rt.cpu);
+    r->set_cpu_dma_latency_us(m.dma && m.dma->held() ? setup_.cpu_dma_latency_us : -1);
+    for (const std::string& s : refused_) r->add_refused(s);
+    if (m.flight_request.exchange(false)) flight.request();
+    flight.hand_over_into(t);
+    const std::string bytes = t.SerializeAsString();
+    (void)transport::send_noexcept(*m.telemetry_pub, bytes);
+  }
 }
 
 void NodeApp::stop() {

@@ -1,12 +1,14 @@
 // A node process (teleop-master, teleop-slave): the RT loop around NodeCore and the threads that
 // keep sockets, protobuf and logging off it (docs/architecture.md §4.2; issue 4):
 //  - loop:      PeriodicLoop at sample_rate_hz running NodeCore::step (RT settings applied);
-//  - sender:    woken by the loop each cycle, encodes the newest own state and publishes it;
-//  - receiver:  takes the newest peer state (conflated), drops and counts bad ones, hands the
-//               good ones to the loop with their arrival time;
-//  - commands:  the command endpoint (arm, engage, ..., e-stop, status); replies once the loop
-//               has applied the command;
-//  - telemetry: every cycle's record, batched at telemetry_rate_hz, with loop and link stats.
+//  - sender (run_state_sender): woken by the loop each cycle, encodes the newest own state and
+//    publishes it;
+//  - receiver (run_peer_receiver): takes the newest peer state (conflated), drops and counts
+//    bad ones, hands the good ones to the loop with their arrival time;
+//  - commands (run_command_server): the command endpoint (arm, engage, ..., e-stop, status);
+//    replies once the loop has applied the command;
+//  - telemetry (run_telemetry_publisher): every cycle's record, batched at telemetry_rate_hz,
+//    with loop and link stats.
 #pragma once
 
 #include <atomic>
@@ -22,6 +24,11 @@
 #include "common/device/haptic_device.hpp"
 #include "common/node/node_core.hpp"
 #include "common/rt/periodic_loop.hpp"
+
+namespace teleop::v1 {
+class NodeCommand;
+class NodeCommandReply;
+}  // namespace teleop::v1
 
 namespace teleop::runtime {
 
@@ -60,6 +67,23 @@ class NodeApp {
 
  private:
   struct Impl;
+  // start(), step by step, on the caller's thread.
+  void set_up_link_security();
+  void set_link_thread_priority();
+  void open_endpoints();
+  void hold_cpu_dma_latency();
+  void start_link_threads();
+  void start_loop();
+  // The link threads: each function is the whole body of the thread it names (started by
+  // start_link_threads(), run again if it throws, ended by stop()).
+  void run_state_sender();         // thread "sender"
+  void run_peer_receiver();        // thread "receiver"
+  void run_command_server();       // thread "commands"
+  void run_telemetry_publisher();  // thread "telemetry"
+  // On the sender's and the receiver's thread: the priority set_link_thread_priority() chose.
+  void apply_link_thread_priority() const;
+  // On the command server's thread: the answer to a well-formed, authorised command.
+  void answer_command(const v1::NodeCommand& cmd, v1::NodeCommandReply& reply);
   config::NodeSetup setup_;
   std::unique_ptr<device::HapticDevice> device_;
   NodeAppOptions options_;

@@ -47,6 +47,125 @@ double rms(double sum_sq, long n) {
   return n > 0 ? std::sqrt(sum_sq / static_cast<double>(n)) : 0.0;
 }
 
+// A limit cycle of a count or two of the encoder (peak to peak) is quantisation, not
+// instability: the threshold is 1.5 counts of amplitude.
+double oscillation_threshold(const device::SimDeviceConfig& c) {
+  if (!c.quantize_position) return 1e-5;
+  const double count_m = 2.0 * std::numbers::pi * c.encoder.metres_per_radian /
+                         (c.encoder.counts_per_rev * c.encoder.transmission_ratio);
+  return std::max(1e-5, 1.5 * count_m);
+}
+
+// The two laws joined as the nodes join them. The states each side sends: its position and
+// its own filtered velocity, computed here from the same samples so that both laws see the
+// peer's state of the same sample (a zero round trip is the paper's model); the configured
+// round trip delays the master's.
+class LockstepLaws {
+ public:
+  LockstepLaws(const control::LawParams& law, double t_s, int delay, double master_x0,
+               double slave_x0)
+      : master_law_(law),
+        slave_law_(law),
+        slave_velocity_(t_s, law.velocity_cutoff_hz),
+        delay_(delay),
+        in_flight_(static_cast<std::size_t>(delay) + 1,
+                   control::PeerState{master_x0, 0.0, 0.0, false, true}) {
+    master_law_.reset(master_x0);
+    slave_law_.reset(slave_x0);
+    slave_velocity_.reset(slave_x0);
+  }
+
+  // Step k: the master's command, then the slave's.
+  std::pair<control::Command, control::Command> step(long k, const device::Sample& ms,
+                                                     const device::Sample& ss) {
+    const double fe_measured = ss.force_N;
+    // The slave's state of this sample (its position and filtered velocity, as its law computes
+    // them) reaches the master at once; the master's own outgoing state, with its clutch offset
+    // and validity, goes through the round trip to the slave.
+    const control::PeerState slave_state{ss.position_m, slave_velocity_.step(ss.position_m),
+                                         fe_measured, false, !slave_law_.faulted()};
+    const control::Command cm = master_law_.step(ms.position_m, slave_state);
+    in_flight_[static_cast<std::size_t>(k % (delay_ + 1))] = master_law_.peer_state();
+    const control::PeerState& master_delayed =
+        in_flight_[static_cast<std::size_t>((k + 1) % (delay_ + 1))];
+    const control::Command cs = slave_law_.step(ss.position_m, fe_measured, master_delayed);
+    return {cm, cs};
+  }
+
+ private:
+  control::MasterLaw master_law_;
+  control::SlaveLaw slave_law_;
+  control::VelocityEstimator slave_velocity_;
+  int delay_;
+  std::vector<control::PeerState> in_flight_;
+};
+
+// What a bilateral run measures, sample by sample, into its summary.
+class BilateralMetrics {
+ public:
+  BilateralMetrics(const TeleopParams& teleop, long steps)
+      : alpha_(teleop.scaling.position),
+        beta_(teleop.scaling.force),
+        mf_(teleop.master_fixture),
+        sf_(teleop.slave_fixture) {
+    xm_series_.reserve(static_cast<std::size_t>(steps));
+    xs_series_.reserve(static_cast<std::size_t>(steps));
+  }
+
+  void add(const device::SimTruth& mt, const device::SimTruth& st, SimulationSummary& sum) {
+    const double xm = mt.state.position_m;
+    const double xs = st.state.position_m;
+    const double fh = mt.output.human_force_N;
+    const double fe = st.output.environment_force_N;
+    xm_series_.push_back(xm);
+    xs_series_.push_back(xs);
+    if (mf_.stiffness_N_per_m > 0.0) {
+      sum.max_penetration_master_m = std::max(sum.max_penetration_master_m, xm - mf_.position_m);
+    }
+    if (sf_.stiffness_N_per_m > 0.0) {
+      sum.max_penetration_slave_m = std::max(sum.max_penetration_slave_m, xs - sf_.position_m);
+    }
+    const double track = alpha_ * xm - xs;
+    const double ferr = fh - beta_ * fe;
+    track_sq_ += track * track;
+    force_sq_ += ferr * ferr;
+    sum.force_error_peak_N = std::max(sum.force_error_peak_N, std::abs(ferr));
+    const bool slave_free = !st.output.in_contact &&
+                            !(sf_.stiffness_N_per_m > 0.0 && xs > sf_.position_m) &&
+                            !(mf_.stiffness_N_per_m > 0.0 && xm > mf_.position_m);
+    if (slave_free) sum.parasitic_force_peak_N = std::max(sum.parasitic_force_peak_N, std::abs(fh));
+  }
+
+  // The errors' RMS and both sides' oscillation, once the run is over.
+  void finish(SimulationSummary& sum, long steps, double t_s,
+              const device::SimDeviceConfig& master_cfg,
+              const device::SimDeviceConfig& slave_cfg) const {
+    sum.steps = steps;
+    sum.duration_s = static_cast<double>(steps) * t_s;
+    sum.tracking_error_rms_m = rms(track_sq_, steps);
+    sum.force_error_rms_N = rms(force_sq_, steps);
+    const double window = std::min(1.0, 0.25 * sum.duration_s);
+    sum.oscillation = detect_oscillation(xs_series_, t_s, window, oscillation_threshold(slave_cfg));
+    sum.master_oscillation =
+        detect_oscillation(xm_series_, t_s, window, oscillation_threshold(master_cfg));
+  }
+
+ private:
+  double alpha_;
+  double beta_;
+  FixtureParams mf_;
+  FixtureParams sf_;
+  std::vector<double> xm_series_{};
+  std::vector<double> xs_series_{};
+  double track_sq_{0.0};
+  double force_sq_{0.0};
+};
+
+void set_wall_time(SimulationSummary& sum, Clock::time_point wall0, Clock::time_point wall1) {
+  sum.wall_time_s = std::chrono::duration<double>(wall1 - wall0).count();
+  sum.real_time_factor = sum.wall_time_s > 0.0 ? sum.duration_s / sum.wall_time_s : 0.0;
+}
+
 SimulationResult simulate_bilateral(const SceneSetup& s) {
   const double rate = s.teleop.sample_rate_hz;
   const double t_s = 1.0 / rate;
@@ -72,106 +191,39 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
   check(slave.configure(), "slave device");
   check(master.activate(), "master device");
   check(slave.activate(), "slave device");
-
-  control::MasterLaw master_law(law);
-  control::SlaveLaw slave_law(law);
-  master_law.reset(master_cfg.initial_position_m);
-  slave_law.reset(slave_cfg.initial_position_m);
-  // The states each side sends: its position and its own filtered velocity, computed here
-  // from the same samples so that both laws see the peer's state of the same sample (a zero
-  // round trip is the paper's model); the configured round trip delays the master's.
-  control::VelocityEstimator slave_velocity(t_s, law.velocity_cutoff_hz);
-  slave_velocity.reset(slave_cfg.initial_position_m);
-  const int delay = s.teleop.round_trip_delay_samples;
-  std::vector<control::PeerState> in_flight(
-      static_cast<std::size_t>(delay) + 1,
-      control::PeerState{master_cfg.initial_position_m, 0.0, 0.0, false, true});
+  LockstepLaws laws(law, t_s, s.teleop.round_trip_delay_samples, master_cfg.initial_position_m,
+                    slave_cfg.initial_position_m);
 
   const long steps = std::lround(s.duration_s * rate);
-  const double alpha = s.teleop.scaling.position;
-  const double beta = s.teleop.scaling.force;
-  const FixtureParams mf = s.teleop.master_fixture;
-  const FixtureParams sf = s.teleop.slave_fixture;
   Recorder rec;
   rec.every = decimation(rate, s.output_rate_hz);
   SimulationResult out;
   out.columns = {"time_s",          "master_position_m", "slave_position_m",
                  "master_sensed_m", "slave_sensed_m",    "master_force_N",
                  "slave_force_N",   "human_force_N",     "environment_force_N"};
-  std::vector<double> xm_series;
-  std::vector<double> xs_series;
-  xm_series.reserve(static_cast<std::size_t>(steps));
-  xs_series.reserve(static_cast<std::size_t>(steps));
-  double track_sq = 0.0;
-  double force_sq = 0.0;
-
+  BilateralMetrics metrics(s.teleop, steps);
   const auto wall0 = Clock::now();
   for (long k = 0; k < steps; ++k) {
     device::Sample ms{};
     device::Sample ss{};
     (void)master.read(ms);
     (void)slave.read(ss);
-    const double fe_measured = ss.force_N;
-    // The slave's state of this sample (its position and filtered velocity, as its law computes
-    // them) reaches the master at once; the master's own outgoing state, with its clutch offset
-    // and validity, goes through the round trip to the slave.
-    const control::PeerState slave_state{ss.position_m, slave_velocity.step(ss.position_m),
-                                         fe_measured, false, !slave_law.faulted()};
-    const control::Command cm = master_law.step(ms.position_m, slave_state);
-    in_flight[static_cast<std::size_t>(k % (delay + 1))] = master_law.peer_state();
-    const control::PeerState& master_delayed =
-        in_flight[static_cast<std::size_t>((k + 1) % (delay + 1))];
-    const control::Command cs = slave_law.step(ss.position_m, fe_measured, master_delayed);
+    const auto [cm, cs] = laws.step(k, ms, ss);
     sum.fault = sum.fault || cm.flags.input_fault || cs.flags.input_fault;
     // The master is pushed by -F_am (F_h - F_am = Z_m X_m); the slave by +F_as.
     (void)master.write(device::Command{-cm.force_N});
     (void)slave.write(device::Command{cs.force_N});
     (void)master.advance(period);
     (void)slave.advance(period);
-
     const device::SimTruth mt = master.truth();
     const device::SimTruth st = slave.truth();
-    const double xm = mt.state.position_m;
-    const double xs = st.state.position_m;
-    const double fh = mt.output.human_force_N;
-    const double fe = st.output.environment_force_N;
-    xm_series.push_back(xm);
-    xs_series.push_back(xs);
-    if (mf.stiffness_N_per_m > 0.0) {
-      sum.max_penetration_master_m = std::max(sum.max_penetration_master_m, xm - mf.position_m);
-    }
-    if (sf.stiffness_N_per_m > 0.0) {
-      sum.max_penetration_slave_m = std::max(sum.max_penetration_slave_m, xs - sf.position_m);
-    }
-    const double track = alpha * xm - xs;
-    const double ferr = fh - beta * fe;
-    track_sq += track * track;
-    force_sq += ferr * ferr;
-    sum.force_error_peak_N = std::max(sum.force_error_peak_N, std::abs(ferr));
-    const bool slave_free = !st.output.in_contact &&
-                            !(sf.stiffness_N_per_m > 0.0 && xs > sf.position_m) &&
-                            !(mf.stiffness_N_per_m > 0.0 && xm > mf.position_m);
-    if (slave_free) sum.parasitic_force_peak_N = std::max(sum.parasitic_force_peak_N, std::abs(fh));
-    rec.add(k, {mt.time_s, xm, xs, ms.position_m, ss.position_m, cm.force_N, cs.force_N, fh, fe});
+    metrics.add(mt, st, sum);
+    rec.add(k, {mt.time_s, mt.state.position_m, st.state.position_m, ms.position_m, ss.position_m,
+                cm.force_N, cs.force_N, mt.output.human_force_N, st.output.environment_force_N});
   }
   const auto wall1 = Clock::now();
-  sum.steps = steps;
-  sum.duration_s = static_cast<double>(steps) * t_s;
-  sum.tracking_error_rms_m = rms(track_sq, steps);
-  sum.force_error_rms_N = rms(force_sq, steps);
-  const double window = std::min(1.0, 0.25 * sum.duration_s);
-  // A limit cycle of a count or two of the encoder (peak to peak) is quantisation, not
-  // instability: the threshold is 1.5 counts of amplitude.
-  auto threshold = [](const device::SimDeviceConfig& c) {
-    if (!c.quantize_position) return 1e-5;
-    const double count_m = 2.0 * std::numbers::pi * c.encoder.metres_per_radian /
-                           (c.encoder.counts_per_rev * c.encoder.transmission_ratio);
-    return std::max(1e-5, 1.5 * count_m);
-  };
-  sum.oscillation = detect_oscillation(xs_series, t_s, window, threshold(slave_cfg));
-  sum.master_oscillation = detect_oscillation(xm_series, t_s, window, threshold(master_cfg));
-  sum.wall_time_s = std::chrono::duration<double>(wall1 - wall0).count();
-  sum.real_time_factor = sum.wall_time_s > 0.0 ? sum.duration_s / sum.wall_time_s : 0.0;
+  metrics.finish(sum, steps, t_s, master_cfg, slave_cfg);
+  set_wall_time(sum, wall0, wall1);
   out.summary = sum;
   out.rows = std::move(rec.rows);
   return out;
@@ -241,8 +293,7 @@ SimulationResult simulate_force_device(const SceneSetup& s) {
   // The hand drives the device: only a swing of more than a millimetre about the hand's own
   // motion counts (the grip's forced deflection under the parasitic force is far smaller).
   sum.oscillation = detect_oscillation(x_series, t_s, std::min(1.0, 0.25 * sum.duration_s), 1e-3);
-  sum.wall_time_s = std::chrono::duration<double>(wall1 - wall0).count();
-  sum.real_time_factor = sum.wall_time_s > 0.0 ? sum.duration_s / sum.wall_time_s : 0.0;
+  set_wall_time(sum, wall0, wall1);
   out.summary = sum;
   out.rows = std::move(rec.rows);
   return out;

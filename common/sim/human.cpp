@@ -18,39 +18,29 @@ void require(bool ok, const std::string& field, const char* what) {
 }  // namespace
 
 ForceProfile ForceProfile::constant(double value_N) {
-  ForceProfile p;
-  p.kind = ProfileKind::kConstant;
-  p.value_N = value_N;
-  return p;
+  return {.kind = ProfileKind::kConstant, .value_N = value_N};
 }
 
 ForceProfile ForceProfile::ramp(double from_N, double to_N, double start_s, double duration_s) {
-  ForceProfile p;
-  p.kind = ProfileKind::kRamp;
-  p.value_N = from_N;
-  p.to_N = to_N;
-  p.start_s = start_s;
-  p.duration_s = duration_s;
-  return p;
+  return {.kind = ProfileKind::kRamp,
+          .value_N = from_N,
+          .to_N = to_N,
+          .start_s = start_s,
+          .duration_s = duration_s};
 }
 
 ForceProfile ForceProfile::sinusoid(double offset_N, double amplitude_N, double frequency_hz,
                                     double phase_rad) {
-  ForceProfile p;
-  p.kind = ProfileKind::kSinusoid;
-  p.value_N = offset_N;
-  p.amplitude_N = amplitude_N;
-  p.frequency_hz = frequency_hz;
-  p.phase_rad = phase_rad;
-  return p;
+  return {.kind = ProfileKind::kSinusoid,
+          .value_N = offset_N,
+          .amplitude_N = amplitude_N,
+          .frequency_hz = frequency_hz,
+          .phase_rad = phase_rad};
 }
 
 ForceProfile ForceProfile::trace(std::vector<double> times_s, std::vector<double> values_N) {
-  ForceProfile p;
-  p.kind = ProfileKind::kTrace;
-  p.times_s = std::move(times_s);
-  p.values_N = std::move(values_N);
-  return p;
+  return {
+      .kind = ProfileKind::kTrace, .times_s = std::move(times_s), .values_N = std::move(values_N)};
 }
 
 void ForceProfile::validate() const {

@@ -295,57 +295,118 @@ std::array<Cd, 2> crossing_phases(const BoundaryPoint& p) {
   return {p.p1_phase, p.p1_phase * p.r};  // P1 and P0 = P1 r: compared by too_far
 }
 
-}  // namespace
+// sin(arg G) at a sample: its sign changes where G is real.
+double sin_arg_g(const BoundaryPoint& x) { return sin_arg(x.r); }
 
-CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
-                                      double max_stiffness_N_per_m) const {
-  const AdmissibleBoundary boundary(required_damping_ratio);
-  CrossingSearch out;
-  out.required_damping_ratio = required_damping_ratio;
-  auto eval = [&](double theta) {
-    ++out.boundary_points;
-    BoundaryPoint p = evaluate(theta, boundary);
-    if (!std::isfinite(p.r.real()) || !std::isfinite(p.r.imag())) out.unresolved = true;
+// RankOneLoop::crossings, step by step, into `out`.
+class CrossingFinder {
+ public:
+  CrossingFinder(const RankOneLoop& loop, double required_damping_ratio,
+                 double max_stiffness_N_per_m, CrossingSearch& out)
+      : loop_(loop),
+        boundary_(required_damping_ratio),
+        max_stiffness_(max_stiffness_N_per_m),
+        out_(out) {
+    out_.required_damping_ratio = required_damping_ratio;
+  }
+
+  // The initial grid, refined: the phase of det M turns by about pi per mode inside the region.
+  void sample_boundary() {
+    std::vector<BoundaryPoint>& s = out_.samples;
+    const std::vector<double> grid = initial_grid(loop_.order());
+    const auto eval = [this](double theta) { return this->eval(theta); };
+    s.reserve(grid.size() * 2);
+    s.push_back(eval(grid.front()));
+    for (std::size_t j = 1; j < grid.size(); ++j) {
+      const BoundaryPoint next = eval(grid[j]);
+      const BoundaryPoint prev = s.back();
+      refine(prev, next, s, out_.unresolved, crossing_phases, eval, end_zone(loop_.order()));
+    }
+  }
+
+  // The real-axis ends of the boundary (z = 1, z = -|z(pi)|), where G is real.
+  void add_ends() {
+    const std::vector<BoundaryPoint>& s = out_.samples;
+    for (const BoundaryPoint* end : {&s.front(), &s.back()}) {
+      if (!end->singular) add(end->theta, Cd(end->r.real(), 0.0), false);
+    }
+  }
+
+  // The samples with the ends moved just inside: at the ends sin(arg G) is 0 identically.
+  [[nodiscard]] std::vector<BoundaryPoint> inner_samples() {
+    std::vector<BoundaryPoint> inner = out_.samples;
+    if (inner.size() >= 2) {
+      inner.front() = eval(inner[1].theta * 1e-6);
+      inner.back() = eval(kPi - (kPi - inner[inner.size() - 2].theta) * 1e-6);
+    }
+    return inner;
+  }
+
+  // A crossing between neighbours where sin(arg G) changes sign.
+  void add_sign_changes(const std::vector<BoundaryPoint>& inner) {
+    for (std::size_t j = 0; j + 1 < inner.size(); ++j) {
+      const BoundaryPoint& a = inner[j];
+      const BoundaryPoint& b = inner[j + 1];
+      const double fa = sin_arg_g(a);
+      const double fb = sin_arg_g(b);
+      if (!(a.r.real() < 0.0 || b.r.real() < 0.0)) continue;  // a root here has K < 0
+      if ((fa > 0.0) != (fb > 0.0) && fa != 0.0 && fb != 0.0) {
+        const BoundaryPoint c = root(a, b);
+        add(c.theta, c.r, false);
+      }
+    }
+  }
+
+  // A mode that touches the boundary and returns: |sin(arg G)| has a local minimum at a
+  // sample with no sign change on either side.
+  void add_touches(const std::vector<BoundaryPoint>& inner) {
+    for (std::size_t j = 1; j + 1 < inner.size(); ++j) {
+      const double f0 = sin_arg_g(inner[j - 1]);
+      const double f1 = sin_arg_g(inner[j]);
+      const double f2 = sin_arg_g(inner[j + 1]);
+      const double sign = f1 > 0.0 ? 1.0 : -1.0;
+      if (!(sign * f0 > 0.0 && sign * f2 > 0.0 && sign * f1 > 0.0)) continue;
+      if (!(std::abs(f1) < std::abs(f0) && std::abs(f1) < std::abs(f2) && std::abs(f1) < 0.3)) {
+        continue;
+      }
+      if (!(inner[j].r.real() < 0.0)) continue;
+      add_touch(inner[j - 1], inner[j], inner[j + 1], sign);
+    }
+  }
+
+  void sort_crossings() {
+    std::sort(out_.crossings.begin(), out_.crossings.end(),
+              [](const Crossing& x, const Crossing& y) {
+                return x.stiffness_N_per_m < y.stiffness_N_per_m;
+              });
+  }
+
+ private:
+  BoundaryPoint eval(double theta) {
+    ++out_.boundary_points;
+    BoundaryPoint p = loop_.evaluate(theta, boundary_);
+    if (!std::isfinite(p.r.real()) || !std::isfinite(p.r.imag())) out_.unresolved = true;
     return p;
-  };
+  }
+
   // A crossing at K = 1/G = -r, real and positive there.
-  auto add = [&](double theta, Cd r, bool near_double) {
+  void add(double theta, Cd r, bool near_double) {
     const double k = -r.real();
     if (!std::isfinite(k)) return;
-    if (!(k > 1e-9) || k > max_stiffness_N_per_m) return;
-    out.crossings.push_back({k, boundary.at(theta), near_double});
-  };
-  // The initial grid: the phase of det M turns by about pi per mode inside the region.
-  std::vector<BoundaryPoint>& s = out.samples;
-  const std::vector<double> grid = initial_grid(order());
-  s.reserve(grid.size() * 2);
-  s.push_back(eval(grid.front()));
-  for (std::size_t j = 1; j < grid.size(); ++j) {
-    const BoundaryPoint next = eval(grid[j]);
-    const BoundaryPoint prev = s.back();
-    refine(prev, next, s, out.unresolved, crossing_phases, eval, end_zone(order()));
+    if (!(k > 1e-9) || k > max_stiffness_) return;
+    out_.crossings.push_back({k, boundary_.at(theta), near_double});
   }
-  // The real-axis ends of the boundary (z = 1, z = -|z(pi)|), where G is real.
-  for (const BoundaryPoint* end : {&s.front(), &s.back()}) {
-    if (!end->singular) add(end->theta, Cd(end->r.real(), 0.0), false);
-  }
-  // At the ends sin(arg G) is 0 identically: take the sign just inside.
-  auto h = [](const BoundaryPoint& x) { return sin_arg(x.r); };
-  std::vector<BoundaryPoint> inner = s;
-  if (inner.size() >= 2) {
-    inner.front() = eval(inner[1].theta * 1e-6);
-    inner.back() = eval(kPi - (kPi - inner[inner.size() - 2].theta) * 1e-6);
-  }
+
   // The root of sin(arg G) in [a, b] (a sign change), by the Illinois method.
-  auto root = [&](BoundaryPoint a, BoundaryPoint b) {
-    double fa = h(a);
-    double fb = h(b);
+  BoundaryPoint root(BoundaryPoint a, BoundaryPoint b) {
+    double fa = sin_arg_g(a);
+    double fb = sin_arg_g(b);
     int side = 0;
     for (int it = 0; it < 100 && b.theta - a.theta > 4e-16 * (1.0 + b.theta); ++it) {
       double t = (a.theta * fb - b.theta * fa) / (fb - fa);
       if (!(t > a.theta && t < b.theta)) t = 0.5 * (a.theta + b.theta);
       const BoundaryPoint c = eval(t);
-      const double fc = h(c);
+      const double fc = sin_arg_g(c);
       if (fc == 0.0) return c;
       if ((fc > 0.0) == (fb > 0.0)) {
         b = c;
@@ -360,52 +421,31 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
       }
     }
     return std::abs(fa) < std::abs(fb) ? a : b;
-  };
-  for (std::size_t j = 0; j + 1 < inner.size(); ++j) {
-    const BoundaryPoint& a = inner[j];
-    const BoundaryPoint& b = inner[j + 1];
-    const double fa = h(a);
-    const double fb = h(b);
-    if (!(a.r.real() < 0.0 || b.r.real() < 0.0)) continue;  // a root here has K < 0
-    if ((fa > 0.0) != (fb > 0.0) && fa != 0.0 && fb != 0.0) {
-      const BoundaryPoint c = root(a, b);
-      add(c.theta, c.r, false);
-    }
   }
-  // A mode that touches the boundary and returns: |sin(arg G)| has a local minimum at a
-  // sample with no sign change on either side. Golden-section search on its neighbours.
-  for (std::size_t j = 1; j + 1 < inner.size(); ++j) {
-    const double f0 = h(inner[j - 1]);
-    const double f1 = h(inner[j]);
-    const double f2 = h(inner[j + 1]);
-    const double sign = f1 > 0.0 ? 1.0 : -1.0;
-    if (!(sign * f0 > 0.0 && sign * f2 > 0.0 && sign * f1 > 0.0)) continue;
-    if (!(std::abs(f1) < std::abs(f0) && std::abs(f1) < std::abs(f2) && std::abs(f1) < 0.3)) {
-      continue;
-    }
-    if (!(inner[j].r.real() < 0.0)) continue;
-    BoundaryPoint lo = inner[j - 1];
-    BoundaryPoint hi = inner[j + 1];
-    BoundaryPoint best = inner[j];
+
+  // Golden-section search for the minimum of |sin(arg G)| between `left` and `right` around
+  // `middle`: two crossings where it changes sign, one near-double crossing where it reaches 0.
+  void add_touch(const BoundaryPoint& left, const BoundaryPoint& middle, const BoundaryPoint& right,
+                 double sign) {
+    BoundaryPoint lo = left;
+    BoundaryPoint hi = right;
+    BoundaryPoint best = middle;
     constexpr double kGolden = 0.6180339887498949;
     BoundaryPoint x1 = eval(hi.theta - kGolden * (hi.theta - lo.theta));
     BoundaryPoint x2 = eval(lo.theta + kGolden * (hi.theta - lo.theta));
-    bool split = false;
-    for (int it = 0; it < 50 && !split && hi.theta - lo.theta > 1e-10 * kPi; ++it) {
+    for (int it = 0; it < 50 && hi.theta - lo.theta > 1e-10 * kPi; ++it) {
       for (const BoundaryPoint* x : {&x1, &x2}) {
-        if (sign * h(*x) <= 0.0) {
+        if (sign * sin_arg_g(*x) <= 0.0) {
           // Two crossings, one on each side of x.
-          const BoundaryPoint first = root(inner[j - 1], *x);
-          const BoundaryPoint second = root(*x, inner[j + 1]);
+          const BoundaryPoint first = root(left, *x);
+          const BoundaryPoint second = root(*x, right);
           add(first.theta, first.r, false);
           add(second.theta, second.r, false);
-          split = true;
-          break;
+          return;
         }
-        if (std::abs(h(*x)) < std::abs(h(best))) best = *x;
+        if (std::abs(sin_arg_g(*x)) < std::abs(sin_arg_g(best))) best = *x;
       }
-      if (split) break;
-      if (sign * h(x1) < sign * h(x2)) {
+      if (sign * sin_arg_g(x1) < sign * sin_arg_g(x2)) {
         hi = x2;
         x2 = x1;
         x1 = eval(hi.theta - kGolden * (hi.theta - lo.theta));
@@ -415,11 +455,27 @@ CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
         x2 = eval(lo.theta + kGolden * (hi.theta - lo.theta));
       }
     }
-    if (!split && std::abs(h(best)) < 1e-9) add(best.theta, best.r, true);
+    if (std::abs(sin_arg_g(best)) < 1e-9) add(best.theta, best.r, true);
   }
-  std::sort(out.crossings.begin(), out.crossings.end(), [](const Crossing& x, const Crossing& y) {
-    return x.stiffness_N_per_m < y.stiffness_N_per_m;
-  });
+
+  const RankOneLoop& loop_;
+  const AdmissibleBoundary boundary_;
+  double max_stiffness_;
+  CrossingSearch& out_;
+};
+
+}  // namespace
+
+CrossingSearch RankOneLoop::crossings(double required_damping_ratio,
+                                      double max_stiffness_N_per_m) const {
+  CrossingSearch out;
+  CrossingFinder finder(*this, required_damping_ratio, max_stiffness_N_per_m, out);
+  finder.sample_boundary();
+  finder.add_ends();
+  const std::vector<BoundaryPoint> inner = finder.inner_samples();
+  finder.add_sign_changes(inner);
+  finder.add_touches(inner);
+  finder.sort_crossings();
   return out;
 }
 

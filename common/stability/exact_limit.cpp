@@ -45,9 +45,12 @@ struct HumanCrossings {
 
 class ExactSearch {
  public:
-  ExactSearch(const TeleopParams& params, Side side, const LoopEvaluator& ev, double other,
-              double cap)
-      : p_(params), side_(side), ev_(ev), other_(other), cap_(cap) {}
+  ExactSearch(const SideSearch& search, double cap)
+      : p_(search.params),
+        side_(search.side),
+        ev_(search.ev),
+        other_(search.other_N_per_m),
+        cap_(cap) {}
 
   [[nodiscard]] double kmvf(double k) const { return side_ == Side::kMaster ? k : other_; }
   [[nodiscard]] double ksvf(double k) const { return side_ == Side::kSlave ? k : other_; }
@@ -213,6 +216,156 @@ bool certainly_admissible(const Spectrum& s, double required) {
   return true;
 }
 
+// Whether the human changes the block the stiffness enters (else one human stands for all),
+// and how many blocks the loop has.
+struct BlockLayout {
+  bool human_free{false};
+  std::size_t blocks{0};
+};
+
+BlockLayout block_layout(const LoopEvaluator& ev, Side side) {
+  BlockLayout l{!ev.human_matters(), 0};
+  const ZohPlant plant = ev.model().master_plant(ev.human(0).impedance);
+  for (const ModelBlock& b : ev.model().build(plant, 0.0, 0.0)) {
+    ++l.blocks;
+    const int position = side == Side::kMaster ? b.master_position : b.slave_position;
+    if (position >= 0 && !b.includes_master) l.human_free = true;
+  }
+  return l;
+}
+
+// The lower end: with one block, every human's count of modes outside at K = 0 (free with
+// the crossings); otherwise, or when any count is not 0, the whole band's spectra at K = 0
+// as the search always had it (a rigid-body mode at z = 1 exactly moves the lower end to the
+// tolerance). Empty when there is no limit (`out` says why).
+std::optional<double> lower_end(const SideSearch& search, const std::vector<HumanCrossings>& found,
+                                std::size_t blocks, StiffnessLimit& out) {
+  bool all_inside = blocks == 1;
+  for (const HumanCrossings& h : found) all_inside = all_inside && h.outside_at_zero == 0;
+  if (all_inside) return 0.0;
+  auto sweep = [&](double k) {
+    ++out.band_verifications;
+    return search.band(k);
+  };
+  const std::optional<LowerEnd> lower = find_lower_end(sweep, search, out);
+  if (!lower) return std::nullopt;
+  return lower->stiffness_N_per_m;
+}
+
+// Each human's first exit, its intervals confirmed by counting modes along the boundary.
+std::vector<HumanOutcome> human_limits(const ExactSearch& search,
+                                       const std::vector<HumanCrossings>& found, double k_lo) {
+  std::vector<HumanOutcome> outcomes(found.size());
+  std::atomic<double> best{std::numeric_limits<double>::infinity()};
+  parallel_for(found.size(), [&](std::size_t i) {
+    // Up to 24 states every interval is confirmed with one spectrum; past that by counting
+    // modes along the boundary (an eigenvalue decomposition of the whole chain per interval
+    // would cost more than everything else), the limiting human again by spectra below.
+    outcomes[i] = search.human_limit(i, found[i], k_lo, best.load(),
+                                     found[i].loop->order() <= kSpectrumOrderLimit);
+    double seen = best.load();
+    while (outcomes[i].limit < seen && !best.compare_exchange_weak(seen, outcomes[i].limit)) {
+    }
+  });
+  return outcomes;
+}
+
+// Every human's crossings, ascending, those within 1e-12 of each other once; the counts of
+// finding them.
+void collect_crossings(StiffnessLimit& out, const std::vector<HumanCrossings>& found) {
+  for (const HumanCrossings& h : found) {
+    out.boundary_points += h.search.boundary_points;
+    out.evaluations += h.spectra;
+  }
+  for (const HumanCrossings& h : found) {
+    for (const Crossing& c : h.search.crossings)
+      out.crossings_N_per_m.push_back(c.stiffness_N_per_m);
+  }
+  std::sort(out.crossings_N_per_m.begin(), out.crossings_N_per_m.end());
+  out.crossings_N_per_m.erase(
+      std::unique(out.crossings_N_per_m.begin(), out.crossings_N_per_m.end(),
+                  [](double a, double b) { return b - a <= 1e-12 * b; }),
+      out.crossings_N_per_m.end());
+}
+
+// The limiting human (the first of the lowest limits); every human's counts added to `out`.
+std::size_t tally_outcomes(StiffnessLimit& out, const std::vector<HumanOutcome>& outcomes) {
+  std::size_t worst = 0;
+  for (std::size_t i = 0; i < outcomes.size(); ++i) {
+    const HumanOutcome& o = outcomes[i];
+    out.evaluations += o.spectra;
+    out.boundary_points += o.boundary_points;
+    out.crossings_found += o.crossings;
+    out.fallbacks += o.fallback ? 1 : 0;
+    if (o.limit < outcomes[worst].limit) worst = i;
+  }
+  return worst;
+}
+
+// Past 24 states, the limiting human's intervals again, each with one spectrum (its eigenvalues,
+// not a count): where they disagree, the spectra decide and the disagreement is a fallback.
+void confirm_by_spectra(const ExactSearch& search, std::size_t worst, const HumanCrossings& found,
+                        double k_lo, HumanOutcome& outcome, StiffnessLimit& out) {
+  HumanOutcome confirmed =
+      search.human_limit(worst, found, k_lo, std::numeric_limits<double>::infinity(), true);
+  out.evaluations += confirmed.spectra;
+  if (confirmed.limit != outcome.limit) {
+    ++out.fallbacks;
+    confirmed.fallback = true;
+  }
+  confirmed.limit = std::min(confirmed.limit, outcome.limit);
+  outcome = confirmed;
+}
+
+struct Answer {
+  double stiffness_N_per_m{0.0};
+  bool certain{false};
+};
+
+// The crossing `limit` comes from the double-precision model, whose entries carry rounding (at
+// high rates phi - I holds few digits): step down from it until a spectrum with error bounds
+// shows every mode inside the region by more than its bound.
+Answer step_down(const SideSearch& search, const std::vector<HumanOutcome>& outcomes, double limit,
+                 double k_lo, StiffnessLimit& out) {
+  double answer = limit * (1.0 - kRoundDown);
+  bool certain = false;
+  // Every human whose own crossing lies within the step of the worst one is checked: its
+  // true crossing could lie under the answer too.
+  std::vector<std::size_t> near;
+  for (std::size_t i = 0; i < outcomes.size(); ++i) {
+    if (outcomes[i].limit <= limit * (1.0 + kMaxStepDown)) near.push_back(i);
+  }
+  auto certain_at = [&](double k) {
+    for (const std::size_t i : near) {
+      ++out.evaluations;
+      if (!certainly_admissible(search.ev.spectrum(i, search.master_k(k), search.slave_k(k), true),
+                                search.required)) {
+        return false;
+      }
+    }
+    return true;
+  };
+  // At most 1e-6 below the crossing (the model's rounding needed 3e-7 at 80 kHz): past that
+  // the doubt is another mode within its bound of the boundary (a marginal one), not the
+  // crossing's, and stepping further would not remove it.
+  double doubtful = limit;
+  for (int i = 0; i < 9 && answer > k_lo; ++i) {
+    if (certain_at(answer)) {
+      certain = true;
+      break;
+    }
+    doubtful = answer;
+    answer = limit * (1.0 - kRoundDown * std::pow(4.0, i + 1));
+  }
+  // Closer: bisect between the last doubtful stiffness and the first certain one.
+  for (int i = 0; certain && i < 4 && doubtful > answer; ++i) {
+    const double mid = 0.5 * (answer + doubtful);
+    (certain_at(mid) ? answer : doubtful) = mid;
+  }
+  if (!certain) answer = limit * (1.0 - kMaxStepDown);
+  return {answer, certain};
+}
+
 }  // namespace
 
 NearestCrossings nearest_crossings(const StiffnessLimit& limit, double stiffness) {
@@ -226,33 +379,13 @@ NearestCrossings nearest_crossings(const StiffnessLimit& limit, double stiffness
 
 StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
                                     const SearchOptions& options) {
-  const LoopEvaluator ev(params, side == Side::kMaster, side == Side::kSlave);
-  const double other = side == Side::kMaster ? params.slave_fixture.stiffness_N_per_m
-                                             : params.master_fixture.stiffness_N_per_m;
-  const double required = params.analysis.required_damping_ratio;
-  const double tol = params.analysis.stiffness_tolerance_N_per_m;
+  const SideSearch side_search(params, side);
+  const LoopEvaluator& ev = side_search.ev;
   const double cap = options.max_stiffness_N_per_m;
-  StiffnessLimit out;
-  out.other_fixture_N_per_m = other;
-  fill_passivity(out, params, side);
-  auto sweep = [&](double k) {
-    ++out.band_verifications;
-    return ev.sweep(side == Side::kMaster ? k : other, side == Side::kSlave ? k : other, required);
-  };
-
-  // Which block the stiffness enters, and whether the human changes it.
-  bool human_free = !ev.human_matters();
-  std::size_t blocks = 0;
-  {
-    const ZohPlant plant = ev.model().master_plant(ev.human(0).impedance);
-    for (const ModelBlock& b : ev.model().build(plant, 0.0, 0.0)) {
-      ++blocks;
-      const int position = side == Side::kMaster ? b.master_position : b.slave_position;
-      if (position >= 0 && !b.includes_master) human_free = true;
-    }
-  }
-  const std::size_t humans = human_free ? 1 : ev.human_count();
-  const ExactSearch search(params, side, ev, other, cap);
+  StiffnessLimit out = side_search.start_limit();
+  const BlockLayout layout = block_layout(ev, side);
+  const std::size_t humans = layout.human_free ? 1 : ev.human_count();
+  const ExactSearch search(side_search, cap);
   std::vector<HumanCrossings> found(humans);
   try {
     parallel_for(humans, [&](std::size_t i) { found[i] = search.crossings(i); });
@@ -263,68 +396,14 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
                      "exact crossings unavailable (" + e.what() + "), scanned instead";
     return scanned;
   }
-
-  // The lower end: with one block, every human's count of modes outside at K = 0 (free with
-  // the crossings); otherwise, or when any count is not 0, the whole band's spectra at K = 0
-  // as the search always had it (a rigid-body mode at z = 1 exactly moves the lower end to the
-  // tolerance).
-  bool all_inside = blocks == 1;
-  for (const HumanCrossings& h : found) all_inside = all_inside && h.outside_at_zero == 0;
-  double k_lo = 0.0;
-  if (!all_inside) {
-    const std::optional<LowerEnd> lower =
-        find_lower_end(sweep, ev, required, tol, side, other, out);
-    if (!lower) return out;
-    k_lo = lower->stiffness_N_per_m;
-  }
-
-  // Each human's first exit, its intervals confirmed by counting modes along the boundary.
-  std::vector<HumanOutcome> outcomes(humans);
-  std::atomic<double> best{std::numeric_limits<double>::infinity()};
-  parallel_for(humans, [&](std::size_t i) {
-    // Up to 24 states every interval is confirmed with one spectrum; past that by counting
-    // modes along the boundary (an eigenvalue decomposition of the whole chain per interval
-    // would cost more than everything else), the limiting human again by spectra below.
-    outcomes[i] = search.human_limit(i, found[i], k_lo, best.load(),
-                                     found[i].loop->order() <= kSpectrumOrderLimit);
-    double seen = best.load();
-    while (outcomes[i].limit < seen && !best.compare_exchange_weak(seen, outcomes[i].limit)) {
-    }
-  });
-  for (std::size_t i = 0; i < humans; ++i) {
-    out.boundary_points += found[i].search.boundary_points;
-    out.evaluations += found[i].spectra;
-  }
-  for (const HumanCrossings& h : found) {
-    for (const Crossing& c : h.search.crossings)
-      out.crossings_N_per_m.push_back(c.stiffness_N_per_m);
-  }
-  std::sort(out.crossings_N_per_m.begin(), out.crossings_N_per_m.end());
-  out.crossings_N_per_m.erase(
-      std::unique(out.crossings_N_per_m.begin(), out.crossings_N_per_m.end(),
-                  [](double a, double b) { return b - a <= 1e-12 * b; }),
-      out.crossings_N_per_m.end());
-  std::size_t worst = 0;
-  for (std::size_t i = 0; i < humans; ++i) {
-    const HumanOutcome& o = outcomes[i];
-    out.evaluations += o.spectra;
-    out.boundary_points += o.boundary_points;
-    out.crossings_found += o.crossings;
-    out.fallbacks += o.fallback ? 1 : 0;
-    if (o.limit < outcomes[worst].limit) worst = i;
-  }
-  // Past 24 states, the limiting human's intervals again, each with one spectrum (its eigenvalues,
-  // not a count): where they disagree, the spectra decide and the disagreement is a fallback.
+  const std::optional<double> lower = lower_end(side_search, found, layout.blocks, out);
+  if (!lower) return out;
+  const double k_lo = *lower;
+  std::vector<HumanOutcome> outcomes = human_limits(search, found, k_lo);
+  collect_crossings(out, found);
+  const std::size_t worst = tally_outcomes(out, outcomes);
   if (std::isfinite(outcomes[worst].limit) && found[worst].loop->order() > kSpectrumOrderLimit) {
-    HumanOutcome confirmed = search.human_limit(worst, found[worst], k_lo,
-                                                std::numeric_limits<double>::infinity(), true);
-    out.evaluations += confirmed.spectra;
-    if (confirmed.limit != outcomes[worst].limit) {
-      ++out.fallbacks;
-      confirmed.fallback = true;
-    }
-    confirmed.limit = std::min(confirmed.limit, outcomes[worst].limit);
-    outcomes[worst] = confirmed;
+    confirm_by_spectra(search, worst, found[worst], k_lo, outcomes[worst], out);
   }
   const HumanOutcome& w = outcomes[worst];
   if (ev.human_matters()) out.worst_human = ev.human(worst);
@@ -332,58 +411,17 @@ StiffnessLimit max_stable_stiffness(const TeleopParams& params, Side side,
     out.reason = fmt::format("meets the requirement for every stiffness up to {:g} N/m", cap);
     return out;
   }
-  // The crossing comes from the double-precision model, whose entries carry rounding (at high
-  // rates phi - I holds few digits): step down from it until a spectrum with error bounds
-  // shows every mode inside the region by more than its bound.
   out.limit_crossing_N_per_m = w.limit;
-  double answer = w.limit * (1.0 - kRoundDown);
-  bool certain = false;
-  if (found[worst].loop->order() <= kSpectrumOrderLimit) {
-    // Every human whose own crossing lies within the step of the worst one is checked: its
-    // true crossing could lie under the answer too.
-    std::vector<std::size_t> near;
-    for (std::size_t i = 0; i < humans; ++i) {
-      if (outcomes[i].limit <= w.limit * (1.0 + kMaxStepDown)) near.push_back(i);
-    }
-    auto certain_at = [&](double k) {
-      for (const std::size_t i : near) {
-        ++out.evaluations;
-        if (!certainly_admissible(ev.spectrum(i, side == Side::kMaster ? k : other,
-                                              side == Side::kSlave ? k : other, true),
-                                  required)) {
-          return false;
-        }
-      }
-      return true;
-    };
-    // At most 1e-6 below the crossing (the model's rounding needed 3e-7 at 80 kHz): past that
-    // the doubt is another mode within its bound of the boundary (a marginal one), not the
-    // crossing's, and stepping further would not remove it.
-    double doubtful = w.limit;
-    for (int i = 0; i < 9 && answer > k_lo; ++i) {
-      if (certain_at(answer)) {
-        certain = true;
-        break;
-      }
-      doubtful = answer;
-      answer = w.limit * (1.0 - kRoundDown * std::pow(4.0, i + 1));
-    }
-    // Closer: bisect between the last doubtful stiffness and the first certain one.
-    for (int i = 0; certain && i < 4 && doubtful > answer; ++i) {
-      const double mid = 0.5 * (answer + doubtful);
-      (certain_at(mid) ? answer : doubtful) = mid;
-    }
-    if (!certain) answer = w.limit * (1.0 - kMaxStepDown);
-  } else {
-    // Counted along the boundary: no per-mode bound to step by, so the full step.
-    answer = w.limit * (1.0 - kMaxStepDown);
-    certain = true;
-  }
-  out.max_stable_stiffness_N_per_m = std::max(k_lo, answer);
-  out.uncertain = w.uncertain || !certain;
+  // Counted along the boundary (past 24 states): no per-mode bound to step by, so the full
+  // step.
+  const Answer answer = found[worst].loop->order() <= kSpectrumOrderLimit
+                            ? step_down(side_search, outcomes, w.limit, k_lo, out)
+                            : Answer{w.limit * (1.0 - kMaxStepDown), true};
+  out.max_stable_stiffness_N_per_m = std::max(k_lo, answer.stiffness_N_per_m);
+  out.uncertain = w.uncertain || !answer.certain;
   if (w.uncertain) {
     out.reason = "a mode touches the boundary at the limit within the numerical error";
-  } else if (!certain) {
+  } else if (!answer.certain) {
     out.reason = (out.reason.empty() ? "" : out.reason + "; ") +
                  "at the limit a mode lies within its error bound of the boundary";
   }

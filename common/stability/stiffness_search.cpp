@@ -12,24 +12,39 @@ namespace teleop::stability {
 namespace {
 
 struct Searcher {
-  const LoopEvaluator& ev;
-  Side side;
-  double other_stiffness;
-  double required;
+  const SideSearch& search;
   long evaluations{0};
-
-  [[nodiscard]] double kmvf(double k) const { return side == Side::kMaster ? k : other_stiffness; }
-  [[nodiscard]] double ksvf(double k) const { return side == Side::kSlave ? k : other_stiffness; }
 
   bool passes(std::size_t human, double k) {
     ++evaluations;
-    const Spectrum s = ev.spectrum(human, kmvf(k), ksvf(k), false);
-    return s.verdict == Verdict::kStable && s.min_damping_ratio >= required;
+    const Spectrum s = search.ev.spectrum(human, search.master_k(k), search.slave_k(k), false);
+    return s.verdict == Verdict::kStable && s.min_damping_ratio >= search.required;
   }
-  BandResult band(double k) const { return ev.sweep(kmvf(k), ksvf(k), required); }
 };
 
 }  // namespace
+
+SideSearch::SideSearch(const TeleopParams& p, Side s)
+    : params(p),
+      side(s),
+      ev(p, s == Side::kMaster, s == Side::kSlave),
+      other_N_per_m(s == Side::kMaster ? p.slave_fixture.stiffness_N_per_m
+                                       : p.master_fixture.stiffness_N_per_m),
+      required(p.analysis.required_damping_ratio),
+      tolerance_N_per_m(p.analysis.stiffness_tolerance_N_per_m) {}
+
+StiffnessLimit SideSearch::start_limit() const {
+  StiffnessLimit out;
+  out.other_fixture_N_per_m = other_N_per_m;
+  if (side != Side::kMaster) return out;
+  out.passivity_limit_N_per_m = master_passivity_limit(params);
+  if (!out.passivity_limit_N_per_m) {
+    out.passivity_reason =
+        "not passive at any stiffness: the master's virtual damping |beta kdm + kvm| is not "
+        "below its device damping b";
+  }
+  return out;
+}
 
 std::string lower_end_failure(const BandResult& r, double required, Side side, double other) {
   const char* name = side == Side::kMaster ? "master" : "slave";
@@ -56,33 +71,25 @@ std::string lower_end_failure(const BandResult& r, double required, Side side, d
 }
 
 std::optional<LowerEnd> find_lower_end(const std::function<BandResult(double)>& band,
-                                       const LoopEvaluator& ev, double required, double tol,
-                                       Side side, double other, StiffnessLimit& out) {
+                                       const SideSearch& search, StiffnessLimit& out) {
+  const double required = search.required;
   // With no restoring force at all (no human spring, no coupling) a free mass has a
   // rigid-body mode at z = 1: marginal at K = 0 exactly, so start just above it.
   const BandResult at_zero = band(0.0);
   if (meets_requirement(at_zero, required)) return LowerEnd{0.0, at_zero};
   if (at_zero.verdict == Verdict::kUncertain) {
-    const BandResult tiny = band(tol);
+    const BandResult tiny = band(search.tolerance_N_per_m);
     if (meets_requirement(tiny, required)) {
       out.reason = "marginal rigid-body mode at zero stiffness; limit taken over (0, K]";
-      return LowerEnd{tol, tiny};
+      return LowerEnd{search.tolerance_N_per_m, tiny};
     }
   }
-  out.reason = lower_end_failure(at_zero, required, side, other);
+  out.reason = lower_end_failure(at_zero, required, search.side, search.other_N_per_m);
   out.invalid = at_zero.verdict == Verdict::kInvalid;
-  if (ev.human_matters()) out.worst_human = ev.human(at_zero.failing_index.value_or(0));
-  return std::nullopt;
-}
-
-void fill_passivity(StiffnessLimit& out, const TeleopParams& params, Side side) {
-  if (side != Side::kMaster) return;
-  out.passivity_limit_N_per_m = master_passivity_limit(params);
-  if (!out.passivity_limit_N_per_m) {
-    out.passivity_reason =
-        "not passive at any stiffness: the master's virtual damping |beta kdm + kvm| is not "
-        "below its device damping b";
+  if (search.ev.human_matters()) {
+    out.worst_human = search.ev.human(at_zero.failing_index.value_or(0));
   }
+  return std::nullopt;
 }
 
 std::optional<double> master_passivity_limit(const TeleopParams& p) {
@@ -95,25 +102,22 @@ std::optional<double> master_passivity_limit(const TeleopParams& p) {
 
 StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
                                          const SearchOptions& options) {
-  const LoopEvaluator ev(params, side == Side::kMaster, side == Side::kSlave);
-  const double other = side == Side::kMaster ? params.slave_fixture.stiffness_N_per_m
-                                             : params.master_fixture.stiffness_N_per_m;
-  const double required = params.analysis.required_damping_ratio;
-  const double tol = params.analysis.stiffness_tolerance_N_per_m;
-  Searcher s{ev, side, other, required};
-  StiffnessLimit out;
-  out.other_fixture_N_per_m = other;
-  fill_passivity(out, params, side);
+  const SideSearch search(params, side);
+  const LoopEvaluator& ev = search.ev;
+  const double required = search.required;
+  const double tol = search.tolerance_N_per_m;
+  Searcher s{search};
+  StiffnessLimit out = search.start_limit();
   auto finish = [&]() -> StiffnessLimit& {
     out.evaluations = s.evaluations;
     return out;
   };
   auto band = [&](double k) {
     ++out.band_verifications;
-    return s.band(k);
+    return search.band(k);
   };
 
-  const std::optional<LowerEnd> lower = find_lower_end(band, ev, required, tol, side, other, out);
+  const std::optional<LowerEnd> lower = find_lower_end(band, search, out);
   if (!lower) return finish();
   const double k_lo = lower->stiffness_N_per_m;
   const BandResult& lo_band = lower->band;

@@ -58,11 +58,35 @@ struct NearestCrossings {
 // Searches on the current worst human (geometric scan, then bisection), verifies the whole
 // band at the answer and at halvings below it, and repeats with whichever human fails there
 // until the band agrees. The other side's fixture is held at its configured value.
-// Shared by both searches: why a configuration has no limit at its lower end, and the
-// master's passivity bound filled in (master side only).
+// What both searches for one side's fixture stiffness start from: the loop with that fixture
+// variable, the other side's fixture held at its configured stiffness.
+struct SideSearch {
+  SideSearch(const TeleopParams& params, Side side);
+
+  const TeleopParams& params;
+  Side side;
+  LoopEvaluator ev;
+  double other_N_per_m;      // the other side's fixture stiffness
+  double required;           // the required damping ratio
+  double tolerance_N_per_m;  // the stiffness tolerance
+
+  // The master's and the slave's fixture stiffness when the searched one is k.
+  [[nodiscard]] double master_k(double k) const {
+    return side == Side::kMaster ? k : other_N_per_m;
+  }
+  [[nodiscard]] double slave_k(double k) const { return side == Side::kSlave ? k : other_N_per_m; }
+  // The whole band at stiffness k.
+  [[nodiscard]] BandResult band(double k) const {
+    return ev.sweep(master_k(k), slave_k(k), required);
+  }
+  // The limit before any search: the other fixture named, and the master's passivity bound
+  // filled in (master side only).
+  [[nodiscard]] StiffnessLimit start_limit() const;
+};
+
+// Why a configuration has no limit at its lower end.
 [[nodiscard]] std::string lower_end_failure(const BandResult& at_zero, double required, Side side,
                                             double other_N_per_m);
-void fill_passivity(StiffnessLimit& out, const TeleopParams& params, Side side);
 
 // The lower end both searches start from: the whole band at K = 0, or at the tolerance when a
 // rigid-body mode sits at z = 1 exactly at K = 0 (then `out.reason` says the limit is over
@@ -72,9 +96,7 @@ struct LowerEnd {
   BandResult band{};
 };
 [[nodiscard]] std::optional<LowerEnd> find_lower_end(const std::function<BandResult(double)>& band,
-                                                     const LoopEvaluator& ev, double required,
-                                                     double tolerance, Side side,
-                                                     double other_N_per_m, StiffnessLimit& out);
+                                                     const SideSearch& search, StiffnessLimit& out);
 
 [[nodiscard]] StiffnessLimit max_stable_stiffness_scan(const TeleopParams& params, Side side,
                                                        const SearchOptions& options = {});

@@ -16,10 +16,7 @@
 #include <unordered_set>
 #include <vector>
 
-namespace zmq {
-class context_t;
-class socket_t;
-}  // namespace zmq
+#include "common/transport/zmq_fwd.hpp"
 
 namespace teleop::transport {
 

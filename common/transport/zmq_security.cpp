@@ -283,6 +283,13 @@ KeyFilePaths write_key_files(const fs::path& name, const CurveKeyPair& keys, boo
   return paths;
 }
 
+LinkSecurity client_security(const std::string& secret_key_file, const std::string& server_key) {
+  LinkSecurity sec;
+  if (!secret_key_file.empty()) sec.own = load_secret_key_file(secret_key_file);
+  if (!server_key.empty()) sec.server_public_key = load_public_key(server_key);
+  return sec;
+}
+
 CurveKeyPair load_secret_key_file(const fs::path& path) {
   const FileText file = read_file(path);
   if ((file.mode & 077) != 0) {

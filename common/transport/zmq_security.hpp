@@ -10,10 +10,7 @@
 #include <string_view>
 #include <vector>
 
-namespace zmq {
-class context_t;
-class socket_t;
-}  // namespace zmq
+#include "common/transport/zmq_fwd.hpp"
 
 namespace teleop::transport {
 
@@ -84,6 +81,11 @@ struct LinkSecurity {
   // The server's public key, for connecting sockets.
   std::optional<std::string> server_public_key{};
 };
+
+// A client's security: its key pair from `secret_key_file` and the server's public key
+// (load_public_key), each only when given; plaintext when neither is.
+[[nodiscard]] LinkSecurity client_security(const std::string& secret_key_file,
+                                           const std::string& server_key);
 
 // Server = the side that binds, client = the side that connects (CURVE's roles follow them).
 enum class LinkRole { kServer, kClient };

@@ -63,58 +63,78 @@ void bind_or_throw(zmq::socket_t& socket, std::string_view endpoint) {
   }
 }
 
-zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                   const LinkSecurity& security) {
-  zmq::socket_t socket(ctx, zmq::socket_type::pub);
+namespace {
+
+// Every socket of the link is made alike around its own `options`: the common settings first,
+// then (connecting sockets) heartbeats and reconnection, then the options, the security, and
+// the bind or the connect last.
+template <typename Options>
+zmq::socket_t bound_socket(zmq::context_t& ctx, zmq::socket_type type, std::string_view endpoint,
+                           const LinkSecurity& security, const Options& options) {
+  zmq::socket_t socket(ctx, type);
   set_common(socket);
-  socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
-  socket.set(zmq::sockopt::conflate, true);
-  // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM without
-  // conflation would drop the newest; see the header).
-  socket.set(zmq::sockopt::xpub_nodrop, false);
+  options(socket);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
   bind_or_throw(socket, endpoint);
   return socket;
 }
 
-zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                       const LinkSecurity& security) {
-  zmq::socket_t socket(ctx, zmq::socket_type::pub);
-  set_common(socket);
-  socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
-  // No inbound limit: see kNoInboundHwm (the budget bounds what a subscriber may send).
-  socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
-  socket.set(zmq::sockopt::sndhwm, 1000);
-  socket.set(zmq::sockopt::xpub_nodrop, false);
-  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
-  bind_or_throw(socket, endpoint);
-  return socket;
-}
-
-zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,
-                                    const LinkSecurity& security) {
-  zmq::socket_t socket(ctx, zmq::socket_type::sub);
+template <typename Options>
+zmq::socket_t connected_socket(zmq::context_t& ctx, zmq::socket_type type,
+                               std::string_view endpoint, const LinkSecurity& security,
+                               const Options& options) {
+  zmq::socket_t socket(ctx, type);
   set_common(socket);
   set_heartbeats(socket);
   set_reconnect(socket);
-  // Not ZMQ_CONFLATE (see the header: libzmq 4.3.4 strands and leaks with it on a SUB).
-  socket.set(zmq::sockopt::rcvhwm, kStateReceiveHwm);
-  socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
-  socket.set(zmq::sockopt::subscribe, "");
+  options(socket);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kClient, security);
   socket.connect(std::string(endpoint));
   return socket;
 }
 
+}  // namespace
+
+zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                   const LinkSecurity& security) {
+  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, [](zmq::socket_t& socket) {
+    socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
+    socket.set(zmq::sockopt::conflate, true);
+    // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM without
+    // conflation would drop the newest; see the header).
+    socket.set(zmq::sockopt::xpub_nodrop, false);
+  });
+}
+
+zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                       const LinkSecurity& security) {
+  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, [](zmq::socket_t& socket) {
+    socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
+    // No inbound limit: see kNoInboundHwm (the budget bounds what a subscriber may send).
+    socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
+    socket.set(zmq::sockopt::sndhwm, 1000);
+    socket.set(zmq::sockopt::xpub_nodrop, false);
+  });
+}
+
+zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,
+                                    const LinkSecurity& security) {
+  return connected_socket(ctx, zmq::socket_type::sub, endpoint, security,
+                          [](zmq::socket_t& socket) {
+                            // Not ZMQ_CONFLATE (see the header: libzmq 4.3.4 strands and leaks
+                            // with it on a SUB).
+                            socket.set(zmq::sockopt::rcvhwm, kStateReceiveHwm);
+                            socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
+                            socket.set(zmq::sockopt::subscribe, "");
+                          });
+}
+
 zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint,
                                   const LinkSecurity& security) {
-  zmq::socket_t socket(ctx, zmq::socket_type::rep);
-  set_common(socket);
-  socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
-  socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
-  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
-  bind_or_throw(socket, endpoint);
-  return socket;
+  return bound_socket(ctx, zmq::socket_type::rep, endpoint, security, [](zmq::socket_t& socket) {
+    socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
+    socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
+  });
 }
 
 zmq::socket_t make_command_client(zmq::context_t& ctx, std::string_view endpoint,
@@ -125,17 +145,13 @@ zmq::socket_t make_command_client(zmq::context_t& ctx, std::string_view endpoint
     throw std::invalid_argument(
         fmt::format("{}: command timeout must be positive, got {} ms", endpoint, timeout.count()));
   }
-  zmq::socket_t socket(ctx, zmq::socket_type::req);
-  set_common(socket);
-  set_heartbeats(socket);
-  set_reconnect(socket);
-  socket.set(zmq::sockopt::req_relaxed, true);
-  socket.set(zmq::sockopt::req_correlate, true);
-  socket.set(zmq::sockopt::sndtimeo, to_option_ms(timeout));
-  socket.set(zmq::sockopt::rcvtimeo, to_option_ms(timeout));
-  (void)apply_link_security(ctx, socket, endpoint, LinkRole::kClient, security);
-  socket.connect(std::string(endpoint));
-  return socket;
+  return connected_socket(ctx, zmq::socket_type::req, endpoint, security,
+                          [timeout](zmq::socket_t& socket) {
+                            socket.set(zmq::sockopt::req_relaxed, true);
+                            socket.set(zmq::sockopt::req_correlate, true);
+                            socket.set(zmq::sockopt::sndtimeo, to_option_ms(timeout));
+                            socket.set(zmq::sockopt::rcvtimeo, to_option_ms(timeout));
+                          });
 }
 
 std::string bound_endpoint(const zmq::socket_t& socket) {

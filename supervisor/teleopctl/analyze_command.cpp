@@ -269,17 +269,10 @@ std::string analyze_usage() {
 
 AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
   AnalyzeOptions o;
-  ArgCursor c(args);
-  while (c.next()) {
+  parse_file_command_args(args, {o.config_path, o.overrides, o.json}, [&](ArgCursor& c) {
     const std::string& a = c.arg();
     auto value = [&](const char* flag) -> const std::string& { return c.value(flag); };
-    if (a == "--json") {
-      o.json = true;
-    } else if (a == "--set") {
-      o.overrides.push_back(value("--set"));
-    } else if (a.rfind("--set=", 0) == 0) {
-      o.overrides.push_back(a.substr(6));
-    } else if (a == "--max-stiffness") {
+    if (a == "--max-stiffness") {
       const std::string& side = value("--max-stiffness");
       if (side == "slave") {
         o.max_stiffness_side = Side::kSlave;
@@ -300,14 +293,11 @@ AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
       o.force_loop = true;
     } else if (a == "--plot") {
       o.plot_path = value("--plot");
-    } else if (!a.empty() && a[0] == '-') {
-      throw UsageError(fmt::format("unknown option '{}'", a));
-    } else if (o.config_path.empty()) {
-      o.config_path = a;
     } else {
-      throw UsageError(fmt::format("unexpected argument '{}'", a));
+      return false;
     }
-  }
+    return true;
+  });
   if (o.config_path.empty()) throw UsageError("missing CONFIG");
   if (o.force_loop && o.max_stiffness_side) {
     throw UsageError("--force-loop and --max-stiffness are separate analyses: give one");

@@ -29,9 +29,28 @@ std::vector<std::string> split(const std::string& s, char separator) {
   return parts;
 }
 
+void take_only_positional(const std::string& arg, std::string& only,
+                          std::string_view option_prefix) {
+  if (arg.rfind(option_prefix, 0) == 0) throw UsageError("unknown option '" + arg + "'");
+  if (!only.empty()) throw UsageError("unexpected argument '" + arg + "'");
+  only = arg;
+}
+
 const std::string& ArgCursor::value(const char* flag) {
   if (i_ + 1 >= args_.size()) throw UsageError(fmt::format("{} needs a value", flag));
   return args_[++i_];
+}
+
+bool take_set_option(ArgCursor& cur, std::vector<std::string>& overrides) {
+  const std::string& a = cur.arg();
+  if (a == "--set") {
+    overrides.push_back(cur.value("--set"));
+  } else if (a.rfind("--set=", 0) == 0) {
+    overrides.push_back(a.substr(6));
+  } else {
+    return false;
+  }
+  return true;
 }
 
 int parse_timeout_ms(const std::string& text) {

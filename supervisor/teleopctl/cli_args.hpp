@@ -4,6 +4,7 @@
 #include <ostream>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "common/config/config_loader.hpp"
@@ -27,6 +28,12 @@ inline constexpr int kExitUsage = 2;
 [[nodiscard]] int parse_timeout_ms(const std::string& text);
 [[nodiscard]] std::vector<std::string> split(const std::string& s, char separator);
 
+// The last branch of an option loop that takes one positional argument: an unknown option
+// (an argument starting with `option_prefix`) and a second positional argument are
+// UsageErrors, the first positional argument goes to `only`.
+void take_only_positional(const std::string& arg, std::string& only,
+                          std::string_view option_prefix = "--");
+
 // Walks the arguments; value() takes the one after the current flag.
 class ArgCursor {
  public:
@@ -39,6 +46,35 @@ class ArgCursor {
   const std::vector<std::string>& args_;
   std::size_t i_{static_cast<std::size_t>(-1)};
 };
+
+// `--set PATH=VALUE` or `--set=PATH=VALUE`, the current argument of `cur`: its override
+// appended to `overrides` (true); false when the argument is something else.
+bool take_set_option(ArgCursor& cur, std::vector<std::string>& overrides);
+
+// What the commands on one configuration or scene file share: that file (the one positional
+// argument), its --set overrides and --json.
+struct FileCommandArgs {
+  std::string& path;
+  std::vector<std::string>& overrides;
+  bool& json;
+};
+
+// Walks `args` for such a command: --set and --json into `common`, the command's own options
+// through `take_own(cursor)` (false: not one of them), anything else is the file; an unknown
+// option (starting with '-') or a second file is a UsageError.
+template <typename TakeOwn>
+void parse_file_command_args(const std::vector<std::string>& args, const FileCommandArgs& common,
+                             TakeOwn&& take_own) {
+  ArgCursor cur(args);
+  while (cur.next()) {
+    if (take_set_option(cur, common.overrides)) continue;
+    if (cur.arg() == "--json") {
+      common.json = true;
+    } else if (!take_own(cur)) {
+      take_only_positional(cur.arg(), common.path, "-");
+    }
+  }
+}
 
 // Runs a command body, turning configuration and other errors into a message and exit 1.
 template <typename Body>

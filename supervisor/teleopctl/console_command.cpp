@@ -90,10 +90,7 @@ class Console {
     zmq::socket_t sub(ctx, zmq::socket_type::sub);
     sub.set(zmq::sockopt::linger, 0);
     sub.set(zmq::sockopt::rcvhwm, 100);
-    transport::LinkSecurity sec;
-    if (!a_.sup.key.empty()) sec.own = transport::load_secret_key_file(a_.sup.key);
-    if (!a_.sup.server_key.empty())
-      sec.server_public_key = transport::load_public_key(a_.sup.server_key);
+    const transport::LinkSecurity sec = transport::client_security(a_.sup.key, a_.sup.server_key);
     (void)transport::apply_link_security(ctx, sub, a_.report, transport::LinkRole::kClient, sec);
     sub.set(zmq::sockopt::subscribe, "status");
     sub.connect(a_.report);
@@ -583,12 +580,8 @@ int run_console(const std::vector<std::string>& args, std::ostream& out, std::os
       if (!(a.refresh_hz >= 1.0 && a.refresh_hz <= 30.0)) {
         throw UsageError("--refresh-hz must be in [1, 30]");
       }
-    } else if (arg.rfind("--", 0) == 0) {
-      throw UsageError("unknown option '" + arg + "'");
-    } else if (a.config_path.empty()) {
-      a.config_path = arg;
     } else {
-      throw UsageError("unexpected argument '" + arg + "'");
+      take_only_positional(arg, a.config_path);
     }
   }
   return run_guarded("console", err, [&]() -> int {

@@ -247,13 +247,9 @@ std::vector<std::string> render_plot(const v1::Trace& a, const v1::Trace& b, int
   return out;
 }
 
-std::vector<std::string> render_console(const ConsoleView& view, int rows, int cols) {
-  std::vector<std::string> lines;
-  const bool have = view.status.has_value();
-  const v1::SupervisorStatus empty;
-  const v1::SupervisorStatus& s = have ? *view.status : empty;
+namespace {
 
-  // Header.
+std::string header_line(const ConsoleView& view, const v1::SupervisorStatus& s, int cols) {
   std::string header;
   if (view.replay) {
     const v1::ReplayPosition& r = s.replay();
@@ -264,7 +260,7 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
     header = fmt::format("TELEOP CONSOLE  live {}  [{}]", view.source,
                          view.read_only ? "read-only" : "read-write");
   }
-  if (!have) {
+  if (!view.status) {
     header += "  WAITING FOR THE SUMMARY";
   } else if (view.status_age_ns > 1'000'000'000) {
     header +=
@@ -274,99 +270,105 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
   if (static_cast<int>(header.size() + clock.size()) < cols) {
     header = pad(header, static_cast<std::size_t>(cols) - clock.size()) + clock;
   }
-  lines.push_back(header);
-  // docs/nodes.md "Before engage": an experiment arming what the analysis refuses, and nodes whose
-  // configurations differ, above everything else.
-  if (!s.experiment_banner().empty()) lines.push_back("!! " + s.experiment_banner());
-  if (!s.configuration_mismatch().empty()) {
-    lines.push_back("!! CONFIGURATION MISMATCH: " + s.configuration_mismatch());
-  }
+  return header;
+}
 
-  if (view.help) {
-    lines.emplace_back("");
-    for (const std::string& l : help_lines(view.replay)) lines.push_back(l);
+// Plots: positions, forces, penetration; 'm' master, 's' slave.
+void add_plots(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int cols) {
+  const int plot_rows = 4;
+  const int width = std::max(8, (cols - 2) / 3);
+  struct Panel {
+    const char* name;
+    const v1::Trace* a;
+    const v1::Trace* b;
+    double scale;
+  };
+  const Panel panels[] = {
+      {"x mm", &s.master().position_trace_m(), &s.slave().position_trace_m(), 1e3},
+      {"F N", &s.master().force_trace_n(), &s.slave().force_trace_n(), 1.0},
+      {"pen mm", &s.master().penetration_trace_m(), &s.slave().penetration_trace_m(), 1e3},
+  };
+  std::string titles;
+  std::vector<std::string> plot(plot_rows);
+  for (const Panel& p : panels) {
+    const std::string sep = titles.empty() ? "" : " ";
+    titles +=
+        sep + pad(plot_title(p.name, *p.a, *p.b, width, p.scale), static_cast<std::size_t>(width));
+    const std::vector<std::string> rows_of = render_plot(*p.a, *p.b, plot_rows, width, p.scale);
+    for (int r = 0; r < plot_rows; ++r) {
+      plot[static_cast<std::size_t>(r)] += sep + rows_of[static_cast<std::size_t>(r)];
+    }
+  }
+  lines.push_back(titles);
+  for (const std::string& l : plot) lines.push_back(l);
+}
+
+// The verdict and each fixture's stiffness against its limit.
+void add_stability(std::vector<std::string>& lines, const v1::StabilityReport& r, int cols) {
+  if (r.verdict().empty()) {
+    lines.emplace_back("stability: no report yet");
   } else {
-    lines.push_back(fmt::format("{:<6} {:<9} {:>6} {:>7} {:>10} {:<14} {}", "node", "state",
-                                "rate Hz", "wake p99", "overruns/1m", "RT", "now"));
-    lines.push_back(node_row("master", s.master()));
-    lines.push_back(node_row("slave", s.slave()));
-    lines.push_back(link_row(s));
-    // Plots: positions, forces, penetration; 'm' master, 's' slave.
-    const int plot_rows = 4;
-    const int width = std::max(8, (cols - 2) / 3);
-    struct Panel {
-      const char* name;
-      const v1::Trace* a;
-      const v1::Trace* b;
-      double scale;
-    };
-    const Panel panels[] = {
-        {"x mm", &s.master().position_trace_m(), &s.slave().position_trace_m(), 1e3},
-        {"F N", &s.master().force_trace_n(), &s.slave().force_trace_n(), 1.0},
-        {"pen mm", &s.master().penetration_trace_m(), &s.slave().penetration_trace_m(), 1e3},
-    };
-    std::string titles;
-    std::vector<std::string> plot(plot_rows);
-    for (const Panel& p : panels) {
-      const std::string sep = titles.empty() ? "" : " ";
-      titles += sep + pad(plot_title(p.name, *p.a, *p.b, width, p.scale),
-                          static_cast<std::size_t>(width));
-      const std::vector<std::string> rows_of = render_plot(*p.a, *p.b, plot_rows, width, p.scale);
-      for (int r = 0; r < plot_rows; ++r) {
-        plot[static_cast<std::size_t>(r)] += sep + rows_of[static_cast<std::size_t>(r)];
-      }
-    }
-    lines.push_back(titles);
-    for (const std::string& l : plot) lines.push_back(l);
-
-    // Stability.
-    const v1::StabilityReport& r = s.report();
-    if (r.verdict().empty()) {
-      lines.emplace_back("stability: no report yet");
-    } else {
-      std::string verdict = r.verdict();
-      std::transform(verdict.begin(), verdict.end(), verdict.begin(),
-                     [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
-      lines.push_back(fmt::format(
-          "stability {}  zeta min {:.4f} (required {:.4f})  model: rtt {} smp, {:.1f} Hz", verdict,
-          r.min_damping_ratio(), r.required_damping_ratio(), r.round_trip_samples(),
-          r.sample_rate_hz()));
-    }
-    auto opt = [](bool has, double v) { return has ? std::optional<double>(v) : std::nullopt; };
-    lines.push_back(fixture_row(
-        "slave", r.slave_fixture_stiffness_n_per_m(), r.has_max_stable_slave_stiffness_n_per_m(),
-        r.max_stable_slave_stiffness_n_per_m(), r.slave_margin(), cols,
-        opt(r.has_slave_crossing_below_n_per_m(), r.slave_crossing_below_n_per_m()),
-        opt(r.has_slave_crossing_above_n_per_m(), r.slave_crossing_above_n_per_m())));
-    lines.push_back(fixture_row(
-        "master", r.master_fixture_stiffness_n_per_m(), r.has_max_stable_master_stiffness_n_per_m(),
-        r.max_stable_master_stiffness_n_per_m(), r.master_margin(), cols,
-        opt(r.has_master_crossing_below_n_per_m(), r.master_crossing_below_n_per_m()),
-        opt(r.has_master_crossing_above_n_per_m(), r.master_crossing_above_n_per_m())));
-    auto osc = [](const v1::NodeSummary& n) {
-      return fmt::format(
-          "{:.3f}{}", n.oscillation_amplitude_m() * 1e3,
-          n.oscillating() ? fmt::format(" OSC@{:.0f}Hz", n.oscillation_frequency_hz()) : "");
-    };
-    lines.push_back(fmt::format(
-        "monitors  oscillation m {} s {} mm  passivity m {:+.4f} s {:+.4f} J", osc(s.master()),
-        osc(s.slave()), s.master().passivity_energy_j(), s.slave().passivity_energy_j()));
-    if (s.recording_file().empty()) {
-      lines.push_back(
-          fmt::format("recorder  off{}",
-                      s.record_dir().empty() ? "" : " (r starts one in " + s.record_dir() + ")"));
-    } else {
-      lines.push_back(fmt::format("recorder  {}{}  {:.1f} MB  {} msgs  {} drops",
-                                  s.recording_error().empty() ? "" : "STOPPED: ",
-                                  std::filesystem::path(s.recording_file()).filename().string(),
-                                  static_cast<double>(s.recording_bytes()) / 1e6,
-                                  s.recorded_messages(), s.recording_drops()));
-    }
-    lines.push_back(fmt::format("alarms (newest first): {}", s.recent_alarms_size()));
+    std::string verdict = r.verdict();
+    std::transform(verdict.begin(), verdict.end(), verdict.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::toupper(c)); });
+    lines.push_back(
+        fmt::format("stability {}  zeta min {:.4f} (required {:.4f})  model: rtt {} smp, {:.1f} Hz",
+                    verdict, r.min_damping_ratio(), r.required_damping_ratio(),
+                    r.round_trip_samples(), r.sample_rate_hz()));
   }
-  // What is left above the key line goes to the alarms and the messages.
-  const int free_rows = std::max(0, rows - static_cast<int>(lines.size()) - 1);
-  // Messages, bottom up: the prompt, then the newest message's rows, ... (word-wrapped).
+  auto opt = [](bool has, double v) { return has ? std::optional<double>(v) : std::nullopt; };
+  lines.push_back(fixture_row(
+      "slave", r.slave_fixture_stiffness_n_per_m(), r.has_max_stable_slave_stiffness_n_per_m(),
+      r.max_stable_slave_stiffness_n_per_m(), r.slave_margin(), cols,
+      opt(r.has_slave_crossing_below_n_per_m(), r.slave_crossing_below_n_per_m()),
+      opt(r.has_slave_crossing_above_n_per_m(), r.slave_crossing_above_n_per_m())));
+  lines.push_back(fixture_row(
+      "master", r.master_fixture_stiffness_n_per_m(), r.has_max_stable_master_stiffness_n_per_m(),
+      r.max_stable_master_stiffness_n_per_m(), r.master_margin(), cols,
+      opt(r.has_master_crossing_below_n_per_m(), r.master_crossing_below_n_per_m()),
+      opt(r.has_master_crossing_above_n_per_m(), r.master_crossing_above_n_per_m())));
+}
+
+std::string monitors_row(const v1::SupervisorStatus& s) {
+  auto osc = [](const v1::NodeSummary& n) {
+    return fmt::format(
+        "{:.3f}{}", n.oscillation_amplitude_m() * 1e3,
+        n.oscillating() ? fmt::format(" OSC@{:.0f}Hz", n.oscillation_frequency_hz()) : "");
+  };
+  return fmt::format("monitors  oscillation m {} s {} mm  passivity m {:+.4f} s {:+.4f} J",
+                     osc(s.master()), osc(s.slave()), s.master().passivity_energy_j(),
+                     s.slave().passivity_energy_j());
+}
+
+std::string recorder_row(const v1::SupervisorStatus& s) {
+  if (s.recording_file().empty()) {
+    return fmt::format("recorder  off{}",
+                       s.record_dir().empty() ? "" : " (r starts one in " + s.record_dir() + ")");
+  }
+  return fmt::format("recorder  {}{}  {:.1f} MB  {} msgs  {} drops",
+                     s.recording_error().empty() ? "" : "STOPPED: ",
+                     std::filesystem::path(s.recording_file()).filename().string(),
+                     static_cast<double>(s.recording_bytes()) / 1e6, s.recorded_messages(),
+                     s.recording_drops());
+}
+
+// Everything between the banners and the alarms when the help is not shown.
+void add_system_rows(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int cols) {
+  lines.push_back(fmt::format("{:<6} {:<9} {:>6} {:>7} {:>10} {:<14} {}", "node", "state",
+                              "rate Hz", "wake p99", "overruns/1m", "RT", "now"));
+  lines.push_back(node_row("master", s.master()));
+  lines.push_back(node_row("slave", s.slave()));
+  lines.push_back(link_row(s));
+  add_plots(lines, s, cols);
+  add_stability(lines, s.report(), cols);
+  lines.push_back(monitors_row(s));
+  lines.push_back(recorder_row(s));
+  lines.push_back(fmt::format("alarms (newest first): {}", s.recent_alarms_size()));
+}
+
+// Messages, bottom up: the prompt, then the newest message's rows, ... (word-wrapped), at most
+// kMaxMessageRows.
+std::vector<std::string> message_area(const ConsoleView& view, int cols) {
   std::vector<std::string> area;
   if (!view.prompt.empty()) area.push_back(view.prompt);
   for (auto m = view.messages.rbegin();
@@ -377,13 +379,12 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
       area.push_back(*w);
     }
   }
-  const int alarms = view.help ? 0 : s.recent_alarms_size();
-  const int message_rows =
-      std::min(free_rows, std::clamp(static_cast<int>(area.size()), kMinMessageRows,
-                                     std::max(kMinMessageRows, free_rows - alarms)));
-  area.resize(static_cast<std::size_t>(std::max(0, message_rows)));
-  // Alarms, newest first, each on up to kAlarmRows rows while every later one still gets one.
-  int room = free_rows - message_rows;
+  return area;
+}
+
+// Alarms, newest first, each on up to kAlarmRows rows while every later one still gets one.
+void add_alarms(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int alarms,
+                int room, int cols) {
   for (int i = 0; i < alarms && room > 0; ++i) {
     const std::vector<std::string> rows_of =
         wrap(alarm_row(s.recent_alarms(i), s.time_ns()), cols, kAlarmIndent);
@@ -393,19 +394,53 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
     for (int r = 0; r < take; ++r) lines.push_back(rows_of[static_cast<std::size_t>(r)]);
     room -= take;
   }
+}
+
+// What is left above the key line: the alarms, then the messages at the bottom.
+void add_alarms_and_messages(std::vector<std::string>& lines, const ConsoleView& view,
+                             const v1::SupervisorStatus& s, int rows, int cols) {
+  const int free_rows = std::max(0, rows - static_cast<int>(lines.size()) - 1);
+  std::vector<std::string> area = message_area(view, cols);
+  const int alarms = view.help ? 0 : s.recent_alarms_size();
+  const int message_rows =
+      std::min(free_rows, std::clamp(static_cast<int>(area.size()), kMinMessageRows,
+                                     std::max(kMinMessageRows, free_rows - alarms)));
+  area.resize(static_cast<std::size_t>(std::max(0, message_rows)));
+  add_alarms(lines, s, alarms, free_rows - message_rows, cols);
   while (static_cast<int>(lines.size()) < rows - message_rows - 1) lines.emplace_back("");
   for (auto l = area.rbegin(); l != area.rend(); ++l) lines.push_back(*l);
-  std::string keys;
+}
+
+std::string key_line(const ConsoleView& view) {
   if (view.replay) {
-    keys = "space pause/resume  , . seek 5s  < > 30s  [ ] speed  0 start  g go to  ? q quit";
-  } else if (!view.prompt.empty()) {
-    keys = "typing: Enter sends  Esc cancels  Ctrl-X E-STOP";
-  } else if (view.read_only) {
-    keys = "READ-ONLY  x E-STOP  ? help  q quit";
-  } else {
-    keys = "x E-STOP a arm e engage d disengage c/u clutch l clear s set r rec ? help q quit";
+    return "space pause/resume  , . seek 5s  < > 30s  [ ] speed  0 start  g go to  ? q quit";
   }
-  lines.push_back(keys);
+  if (!view.prompt.empty()) return "typing: Enter sends  Esc cancels  Ctrl-X E-STOP";
+  if (view.read_only) return "READ-ONLY  x E-STOP  ? help  q quit";
+  return "x E-STOP a arm e engage d disengage c/u clutch l clear s set r rec ? help q quit";
+}
+
+}  // namespace
+
+std::vector<std::string> render_console(const ConsoleView& view, int rows, int cols) {
+  std::vector<std::string> lines;
+  const v1::SupervisorStatus empty;
+  const v1::SupervisorStatus& s = view.status ? *view.status : empty;
+  lines.push_back(header_line(view, s, cols));
+  // docs/nodes.md "Before engage": an experiment arming what the analysis refuses, and nodes whose
+  // configurations differ, above everything else.
+  if (!s.experiment_banner().empty()) lines.push_back("!! " + s.experiment_banner());
+  if (!s.configuration_mismatch().empty()) {
+    lines.push_back("!! CONFIGURATION MISMATCH: " + s.configuration_mismatch());
+  }
+  if (view.help) {
+    lines.emplace_back("");
+    for (const std::string& l : help_lines(view.replay)) lines.push_back(l);
+  } else {
+    add_system_rows(lines, s, cols);
+  }
+  add_alarms_and_messages(lines, view, s, rows, cols);
+  lines.push_back(key_line(view));
   // Fit: at most `rows` lines (the key line kept last), each at most `cols` characters.
   if (static_cast<int>(lines.size()) > rows && rows > 0) {
     lines.erase(lines.begin() + (rows - 1), lines.end() - 1);

@@ -163,6 +163,307 @@ void secure_client_socket(zmq::context_t& ctx, zmq::socket_t& s, const std::stri
   (void)transport::apply_link_security(ctx, s, endpoint, transport::LinkRole::kClient, sec);
 }
 
+// teleopctl launch's command line.
+struct LaunchArgs {
+  std::string config_path;
+  std::vector<std::string> overrides;
+  double duration_s = 0.0;
+  bool engage = true;
+  bool supervise = true;
+  std::string record_dir = "sessions";
+  bool record_dir_given = false;
+  int instance = 0;
+  bool plaintext = false;
+};
+
+LaunchArgs parse_launch_args(const std::vector<std::string>& args) {
+  LaunchArgs l;
+  ArgCursor cur(args);
+  while (cur.next()) {
+    const std::string& a = cur.arg();
+    if (take_set_option(cur, l.overrides)) continue;
+    if (a == "--duration") {
+      l.duration_s = parse_number(cur.value("--duration"), "--duration");
+      if (!(l.duration_s > 0.0)) throw UsageError("--duration must be > 0");
+    } else if (a == "--no-engage") {
+      l.engage = false;
+    } else if (a == "--no-supervisor") {
+      l.supervise = false;
+    } else if (a == "--plaintext") {
+      l.plaintext = true;
+    } else if (a == "--record-dir") {
+      l.record_dir = cur.value("--record-dir");
+      l.record_dir_given = true;
+    } else if (a == "--instance") {
+      l.instance = parse_instance(cur.value("--instance"));
+    } else {
+      take_only_positional(a, l.config_path);
+    }
+  }
+  if (l.config_path.empty()) throw UsageError("expected CONFIG");
+  l.overrides.push_back("master.device.kind=SIM");
+  l.overrides.push_back("slave.device.kind=SIM");
+  return l;
+}
+
+// Instance N: every endpoint moved; `loaded` again so that the moved file is what is checked.
+// Each moved path replaces the user's own --set of it (already moved with the rest).
+void move_to_instance(LaunchArgs& a, config::LoadedConfig& loaded) {
+  const std::vector<std::string> moved = instance_overrides(loaded, a.instance);
+  auto path_of = [](const std::string& o) { return o.substr(0, o.find('=')); };
+  std::erase_if(a.overrides, [&](const std::string& o) {
+    return std::any_of(moved.begin(), moved.end(),
+                       [&](const std::string& m) { return path_of(m) == path_of(o); });
+  });
+  a.overrides.insert(a.overrides.end(), moved.begin(), moved.end());
+  loaded = config::load_config_file(a.config_path, a.overrides);
+  if (!a.record_dir_given) a.record_dir = a.record_dir + "/instance-" + std::to_string(a.instance);
+}
+
+// What a launch runs: the configuration in force (checked before any process starts), the
+// launch's own keys if it made any, each node's setup and how the launch reaches each node.
+struct LaunchPlan {
+  config::LoadedConfig loaded;
+  std::unique_ptr<LaunchKeys> keys;  // removed (with their directory) when the launch ends
+  config::NodeSetup master;
+  config::NodeSetup slave;
+  NodeClientKeys master_client;
+  NodeClientKeys slave_client;
+};
+
+// Completes `a` (instance overrides and record directory, the launch keys' overrides).
+LaunchPlan plan_launch(LaunchArgs& a, std::ostream& out) {
+  LaunchPlan p;
+  // Check the configuration here first: a bad file is reported once, before any process.
+  p.loaded = config::load_config_file(a.config_path, a.overrides);
+  if (a.instance > 0) move_to_instance(a, p.loaded);
+  // Secure by default: keys of its own for a configuration without any (local_launch.hpp).
+  p.keys = a.plaintext ? nullptr : generate_launch_keys(a.config_path, a.overrides, p.loaded);
+  if (p.keys) {
+    out << "CURVE keys generated for this launch in " << p.keys->dir().string()
+        << " (removed when it ends; teleopctl console, status, set, estop and node find them)"
+        << std::endl;
+  }
+  p.master_client = launch_client_keys(p.keys.get(), true);
+  p.slave_client = launch_client_keys(p.keys.get(), false);
+  p.master = config::to_node_setup(p.loaded, transport::Role::kMaster);
+  p.slave = config::to_node_setup(p.loaded, transport::Role::kSlave);
+  for (const std::string& e : {p.master.endpoints.state, p.slave.endpoints.state,
+                               p.master.endpoints.command, p.slave.endpoints.command}) {
+    if (!transport::is_loopback_endpoint(e)) {
+      throw std::runtime_error("launch runs both nodes on this machine: endpoint " + e +
+                               " is not loopback (start teleop-master and teleop-slave on "
+                               "their machines instead)");
+    }
+  }
+  return p;
+}
+
+void install_interrupt_handlers() {
+  struct sigaction sa {};
+  sa.sa_handler = on_interrupt;
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+}
+
+// The processes a launch started (-1: not started).
+struct LaunchedPids {
+  pid_t master = -1;
+  pid_t slave = -1;
+  pid_t supervisor = -1;
+};
+
+// Every binary found before any process starts.
+LaunchedPids spawn_processes(const LaunchArgs& a) {
+  std::vector<std::string> node_args{a.config_path};
+  for (const std::string& o : a.overrides) node_args.push_back("--set=" + o);
+  const std::string master_bin = find_node_binary("teleop-master");
+  const std::string slave_bin = find_node_binary("teleop-slave");
+  const std::string supervisor_bin = a.supervise ? find_node_binary("teleop-supervisor") : "";
+  LaunchedPids pids;
+  pids.master = spawn(master_bin, node_args);
+  pids.slave = spawn(slave_bin, node_args);
+  if (a.supervise) {
+    std::vector<std::string> sup_args = node_args;
+    sup_args.push_back("--record-dir");
+    sup_args.push_back(a.record_dir);
+    pids.supervisor = spawn(supervisor_bin, sup_args);
+  }
+  return pids;
+}
+
+// Stops what the launch started; whether every process exited with 0.
+bool stop_all(const LaunchedPids& pids) {
+  // The supervisor first: it must not take the nodes' stop for a failure.
+  int sup = 0;
+  if (pids.supervisor > 0) {
+    ::kill(pids.supervisor, SIGINT);
+    ::waitpid(pids.supervisor, &sup, 0);
+  }
+  ::kill(pids.master, SIGINT);
+  ::kill(pids.slave, SIGINT);
+  int ms = 0;
+  int ss = 0;
+  ::waitpid(pids.master, &ms, 0);
+  ::waitpid(pids.slave, &ss, 0);
+  const bool sup_ok = pids.supervisor <= 0 || (WIFEXITED(sup) && WEXITSTATUS(sup) == 0);
+  return sup_ok && WIFEXITED(ms) && WEXITSTATUS(ms) == 0 && WIFEXITED(ss) && WEXITSTATUS(ss) == 0;
+}
+
+bool node_exited(const LaunchedPids& pids) {
+  int status = 0;
+  return ::waitpid(pids.master, &status, WNOHANG) == pids.master ||
+         ::waitpid(pids.slave, &status, WNOHANG) == pids.slave;
+}
+
+// The launched processes as confirm_own_processes() checks them: master, slave, supervisor.
+std::vector<LaunchedProcess> own_processes(const LaunchPlan& plan, const LaunchedPids& pids) {
+  std::vector<LaunchedProcess> own;
+  auto add = [&](const std::string& name, pid_t pid, const std::string& endpoint, bool sup,
+                 const NodeClientKeys& keys) {
+    LaunchedProcess lp;
+    lp.name = name;
+    lp.pid = pid;
+    lp.endpoint = endpoint;
+    lp.supervisor = sup;
+    lp.keys = keys;
+    own.push_back(lp);
+  };
+  add("teleop-master", pids.master, plan.master.endpoints.command, false, plan.master_client);
+  add("teleop-slave", pids.slave, plan.slave.endpoints.command, false, plan.slave_client);
+  if (pids.supervisor > 0) {
+    // The supervisor with the launch's console key and its public key (launch keys).
+    NodeClientKeys supervisor_client;
+    if (plan.keys) {
+      supervisor_client = {plan.keys->console_key_file(),
+                           plan.loaded.config.security().supervisor_public_key()};
+    }
+    add("teleop-supervisor", pids.supervisor, supervisor_request_endpoint(plan.loaded), true,
+        supervisor_client);
+  }
+  return own;
+}
+
+void print_launched(std::ostream& out, int instance, const LaunchPlan& plan,
+                    const LaunchedPids& pids) {
+  out << fmt::format("instance {}: master pid {} (commands {}), slave pid {} (commands {})",
+                     instance, pids.master, plan.master.endpoints.command, pids.slave,
+                     plan.slave.endpoints.command);
+  if (pids.supervisor > 0) {
+    out << fmt::format(", supervisor pid {} (requests {}, reports {})", pids.supervisor,
+                       supervisor_request_endpoint(plan.loaded),
+                       supervisor_report_endpoint(plan.loaded));
+  }
+  out << std::endl;
+}
+
+zmq::socket_t subscribe_telemetry(zmq::context_t& ctx, const std::string& endpoint,
+                                  const NodeClientKeys& keys) {
+  zmq::socket_t s(ctx, zmq::socket_type::sub);
+  s.set(zmq::sockopt::linger, 0);
+  s.set(zmq::sockopt::conflate, 1);
+  secure_client_socket(ctx, s, endpoint, keys);
+  s.set(zmq::sockopt::subscribe, "");
+  s.connect(endpoint);
+  return s;
+}
+
+// The launched nodes' newest telemetry: only that of the nodes this launch started (their
+// session ids, confirmed).
+class LaunchTelemetry {
+ public:
+  LaunchTelemetry(const LaunchPlan& plan, std::uint64_t master_session, std::uint64_t slave_session)
+      : master_sub_(subscribe_telemetry(ctx_, plan.master.endpoints.telemetry, plan.master_client)),
+        slave_sub_(subscribe_telemetry(ctx_, plan.slave.endpoints.telemetry, plan.slave_client)),
+        master_session_(master_session),
+        slave_session_(slave_session) {}
+
+  void poll() {
+    for (auto [sock, dst, session] : {std::tuple{&master_sub_, &master_, master_session_},
+                                      std::tuple{&slave_sub_, &slave_, slave_session_}}) {
+      zmq::message_t msg;
+      while (sock->recv(msg, zmq::recv_flags::dontwait)) {
+        v1::Telemetry t;
+        if (t.ParseFromArray(msg.data(), static_cast<int>(msg.size())) &&
+            t.session_id() == session) {
+          *dst = t;
+        }
+      }
+    }
+  }
+  // Polls until both nodes have reported and `pred` holds (true), or `bound` or an interrupt.
+  template <typename Pred>
+  bool wait_until(Pred pred, std::chrono::milliseconds bound) {
+    const auto until = std::chrono::steady_clock::now() + bound;
+    while (!g_interrupted && std::chrono::steady_clock::now() < until) {
+      poll();
+      if (both() && pred()) return true;
+      std::this_thread::sleep_for(10ms);
+    }
+    return false;
+  }
+  [[nodiscard]] bool both() const { return master_ && slave_; }
+  [[nodiscard]] const v1::Telemetry& master() const { return *master_; }
+  [[nodiscard]] const v1::Telemetry& slave() const { return *slave_; }
+
+ private:
+  zmq::context_t ctx_{1};
+  zmq::socket_t master_sub_;
+  zmq::socket_t slave_sub_;
+  std::uint64_t master_session_;
+  std::uint64_t slave_session_;
+  std::optional<v1::Telemetry> master_{};
+  std::optional<v1::Telemetry> slave_{};
+};
+
+// ARM, then ENGAGE, to both nodes; what is wrong with a reply goes to `err`.
+void arm_and_engage(const LaunchPlan& plan, const LaunchedPids& pids, std::ostream& err) {
+  for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+    for (const auto& [e, pid, keys] :
+         {std::tuple{plan.master.endpoints.command, pids.master, plan.master_client},
+          std::tuple{plan.slave.endpoints.command, pids.slave, plan.slave_client}}) {
+      const auto reply = send_node_command(e, kind, keys, 2000);
+      const std::string why = launch_reply_problem(kind, reply, pid);
+      if (!why.empty()) {
+        err << "teleopctl launch: " << v1::NodeCommand::Kind_Name(kind) << " " << e << ": " << why
+            << "\n";
+      }
+    }
+  }
+}
+
+std::string launch_state_line(const v1::Telemetry& mt, const v1::Telemetry& st) {
+  const auto& ml = mt.link();
+  const double x_m = mt.cycles_size() > 0 ? mt.cycles(mt.cycles_size() - 1).position_m() : 0.0;
+  const double x_s = st.cycles_size() > 0 ? st.cycles(st.cycles_size() - 1).position_m() : 0.0;
+  return fmt::format(
+      "master {:<9} slave {:<9} x_m {:+8.3f} mm  x_s {:+8.3f} mm  round trip "
+      "{:.3f} ms ({} samples)  loss {:.4f}  wake-up p99 {:.0f}/{:.0f} us  overruns "
+      "{}/{}",
+      mode_name(mt.mode()), mode_name(st.mode()), x_m * 1e3, x_s * 1e3,
+      static_cast<double>(ml.round_trip_ns()) * 1e-6, ml.round_trip_samples(), ml.loss_fraction(),
+      static_cast<double>(mt.loop().wakeup_p99_ns()) * 1e-3,
+      static_cast<double>(st.loop().wakeup_p99_ns()) * 1e-3, mt.loop().overruns(),
+      st.loop().overruns());
+}
+
+// Both nodes' state once a second until Ctrl-C, `duration_s` (if > 0) or a node exiting.
+void print_state_until_stopped(LaunchTelemetry& tel, const LaunchedPids& pids, double duration_s,
+                               std::ostream& out) {
+  const auto start = std::chrono::steady_clock::now();
+  auto next_print = start;
+  while (!g_interrupted && !node_exited(pids)) {
+    tel.poll();
+    const auto now = std::chrono::steady_clock::now();
+    if (duration_s > 0.0 && now - start >= std::chrono::duration<double>(duration_s)) break;
+    if (now >= next_print && tel.both()) {
+      next_print += 1s;
+      out << launch_state_line(tel.master(), tel.slave()) << std::endl;
+    }
+    std::this_thread::sleep_for(20ms);
+  }
+}
+
 }  // namespace
 
 std::string to_endpoint(const std::string& address) {
@@ -174,12 +475,8 @@ std::optional<v1::NodeCommandReply> send_node_command(const std::string& endpoin
                                                       v1::NodeCommand::Kind kind,
                                                       const NodeClientKeys& keys, int timeout_ms) {
   zmq::context_t ctx(1);
-  transport::LinkSecurity security;
-  if (!keys.secret_key_file.empty()) {
-    security.own = transport::load_secret_key_file(keys.secret_key_file);
-  }
-  if (!keys.server_key.empty())
-    security.server_public_key = transport::load_public_key(keys.server_key);
+  const transport::LinkSecurity security =
+      transport::client_security(keys.secret_key_file, keys.server_key);
   zmq::socket_t client = transport::make_command_client(ctx, endpoint, security,
                                                         std::chrono::milliseconds(timeout_ms));
   v1::NodeCommand c;
@@ -274,216 +571,29 @@ std::string launch_usage() {
 }
 
 int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  std::string config_path;
-  std::vector<std::string> overrides;
-  double duration_s = 0.0;
-  bool engage = true;
-  bool supervise = true;
-  std::string record_dir = "sessions";
-  bool record_dir_given = false;
-  int instance = 0;
-  bool plaintext = false;
-  ArgCursor cur(args);
-  while (cur.next()) {
-    const std::string& a = cur.arg();
-    if (a == "--set") {
-      overrides.push_back(cur.value("--set"));
-    } else if (a.rfind("--set=", 0) == 0) {
-      overrides.push_back(a.substr(6));
-    } else if (a == "--duration") {
-      duration_s = parse_number(cur.value("--duration"), "--duration");
-      if (!(duration_s > 0.0)) throw UsageError("--duration must be > 0");
-    } else if (a == "--no-engage") {
-      engage = false;
-    } else if (a == "--no-supervisor") {
-      supervise = false;
-    } else if (a == "--plaintext") {
-      plaintext = true;
-    } else if (a == "--record-dir") {
-      record_dir = cur.value("--record-dir");
-      record_dir_given = true;
-    } else if (a == "--instance") {
-      instance = parse_instance(cur.value("--instance"));
-    } else if (a.rfind("--", 0) == 0) {
-      throw UsageError("unknown option '" + a + "'");
-    } else if (config_path.empty()) {
-      config_path = a;
-    } else {
-      throw UsageError("unexpected argument '" + a + "'");
-    }
-  }
-  if (config_path.empty()) throw UsageError("expected CONFIG");
-  overrides.push_back("master.device.kind=SIM");
-  overrides.push_back("slave.device.kind=SIM");
-
+  LaunchArgs a = parse_launch_args(args);
   return run_guarded("launch", err, [&]() -> int {
-    // Check the configuration here first: a bad file is reported once, before any process.
-    config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
-    // Instance N: every endpoint moved; loaded again so that the moved file is what is checked.
-    if (instance > 0) {
-      // Each moved path replaces the user's own --set of it (already moved with the rest).
-      const std::vector<std::string> moved = instance_overrides(loaded, instance);
-      auto path_of = [](const std::string& o) { return o.substr(0, o.find('=')); };
-      std::erase_if(overrides, [&](const std::string& o) {
-        return std::any_of(moved.begin(), moved.end(),
-                           [&](const std::string& m) { return path_of(m) == path_of(o); });
-      });
-      overrides.insert(overrides.end(), moved.begin(), moved.end());
-      loaded = config::load_config_file(config_path, overrides);
-      if (!record_dir_given) record_dir = record_dir + "/instance-" + std::to_string(instance);
-    }
-    // Secure by default: keys of its own for a configuration without any (local_launch.hpp).
-    const std::unique_ptr<LaunchKeys> launch_keys =
-        plaintext ? nullptr : generate_launch_keys(config_path, overrides, loaded);
-    if (launch_keys) {
-      out << "CURVE keys generated for this launch in " << launch_keys->dir().string()
-          << " (removed when it ends; teleopctl console, status, set, estop and node find them)"
-          << std::endl;
-    }
-    const NodeClientKeys master_client = launch_client_keys(launch_keys.get(), true);
-    const NodeClientKeys slave_client = launch_client_keys(launch_keys.get(), false);
-    const config::NodeSetup master = config::to_node_setup(loaded, transport::Role::kMaster);
-    const config::NodeSetup slave = config::to_node_setup(loaded, transport::Role::kSlave);
-    for (const std::string& e : {master.endpoints.state, slave.endpoints.state,
-                                 master.endpoints.command, slave.endpoints.command}) {
-      if (!transport::is_loopback_endpoint(e)) {
-        throw std::runtime_error("launch runs both nodes on this machine: endpoint " + e +
-                                 " is not loopback (start teleop-master and teleop-slave on "
-                                 "their machines instead)");
-      }
-    }
-    std::vector<std::string> node_args{config_path};
-    for (const std::string& o : overrides) node_args.push_back("--set=" + o);
-
-    struct sigaction sa {};
-    sa.sa_handler = on_interrupt;
-    sigaction(SIGINT, &sa, nullptr);
-    sigaction(SIGTERM, &sa, nullptr);
-    // Every binary found before any process starts.
-    const std::string master_bin = find_node_binary("teleop-master");
-    const std::string slave_bin = find_node_binary("teleop-slave");
-    const std::string supervisor_bin = supervise ? find_node_binary("teleop-supervisor") : "";
-    const pid_t master_pid = spawn(master_bin, node_args);
-    const pid_t slave_pid = spawn(slave_bin, node_args);
-    pid_t supervisor_pid = -1;
-    if (supervise) {
-      std::vector<std::string> sup_args = node_args;
-      sup_args.push_back("--record-dir");
-      sup_args.push_back(record_dir);
-      supervisor_pid = spawn(supervisor_bin, sup_args);
-    }
-    auto stop_all = [&] {
-      // The supervisor first: it must not take the nodes' stop for a failure.
-      int sup = 0;
-      if (supervisor_pid > 0) {
-        ::kill(supervisor_pid, SIGINT);
-        ::waitpid(supervisor_pid, &sup, 0);
-      }
-      ::kill(master_pid, SIGINT);
-      ::kill(slave_pid, SIGINT);
-      int ms = 0;
-      int ss = 0;
-      ::waitpid(master_pid, &ms, 0);
-      ::waitpid(slave_pid, &ss, 0);
-      const bool sup_ok = supervisor_pid <= 0 || (WIFEXITED(sup) && WEXITSTATUS(sup) == 0);
-      return sup_ok && WIFEXITED(ms) && WEXITSTATUS(ms) == 0 && WIFEXITED(ss) &&
-             WEXITSTATUS(ss) == 0;
-    };
-
+    const LaunchPlan plan = plan_launch(a, out);
+    install_interrupt_handlers();
+    const LaunchedPids pids = spawn_processes(a);
     // The processes answering must be the ones just started (finding 8 of issue 14): else
     // nothing is armed, and what this launch started is stopped.
-    std::uint64_t master_session = 0;
-    std::uint64_t slave_session = 0;
-    {
-      std::vector<LaunchedProcess> own;
-      auto add = [&](const std::string& name, pid_t pid, const std::string& endpoint, bool sup,
-                     const NodeClientKeys& keys) {
-        LaunchedProcess lp;
-        lp.name = name;
-        lp.pid = pid;
-        lp.endpoint = endpoint;
-        lp.supervisor = sup;
-        lp.keys = keys;
-        own.push_back(lp);
-      };
-      add("teleop-master", master_pid, master.endpoints.command, false, master_client);
-      add("teleop-slave", slave_pid, slave.endpoints.command, false, slave_client);
-      if (supervise) {
-        // The supervisor with the launch's console key and its public key (launch keys).
-        NodeClientKeys supervisor_client;
-        if (launch_keys) {
-          supervisor_client = {launch_keys->console_key_file(),
-                               loaded.config.security().supervisor_public_key()};
-        }
-        add("teleop-supervisor", supervisor_pid, supervisor_request_endpoint(loaded), true,
-            supervisor_client);
-      }
-      const std::string why = confirm_own_processes(own, 10000);
-      if (!why.empty()) {
-        stop_all();
-        if (g_interrupted) return kExitOk;
-        err << "teleopctl launch: refused: " << why << "\n";
-        return kExitError;
-      }
-      master_session = own[0].session_id;
-      slave_session = own[1].session_id;
-      out << fmt::format("instance {}: master pid {} (commands {}), slave pid {} (commands {})",
-                         instance, master_pid, master.endpoints.command, slave_pid,
-                         slave.endpoints.command);
-      if (supervise) {
-        out << fmt::format(", supervisor pid {} (requests {}, reports {})", supervisor_pid,
-                           supervisor_request_endpoint(loaded), supervisor_report_endpoint(loaded));
-      }
-      out << std::endl;
+    std::vector<LaunchedProcess> own = own_processes(plan, pids);
+    const std::string why = confirm_own_processes(own, 10000);
+    if (!why.empty()) {
+      stop_all(pids);
+      if (g_interrupted) return kExitOk;
+      err << "teleopctl launch: refused: " << why << "\n";
+      return kExitError;
     }
-
-    zmq::context_t ctx(1);
-    auto subscribe = [&](const std::string& endpoint, const NodeClientKeys& keys) {
-      zmq::socket_t s(ctx, zmq::socket_type::sub);
-      s.set(zmq::sockopt::linger, 0);
-      s.set(zmq::sockopt::conflate, 1);
-      secure_client_socket(ctx, s, endpoint, keys);
-      s.set(zmq::sockopt::subscribe, "");
-      s.connect(endpoint);
-      return s;
-    };
-    zmq::socket_t master_tel = subscribe(master.endpoints.telemetry, master_client);
-    zmq::socket_t slave_tel = subscribe(slave.endpoints.telemetry, slave_client);
-    std::optional<v1::Telemetry> mt;
-    std::optional<v1::Telemetry> st;
-    // Only the telemetry of the nodes this launch started (their session ids, confirmed).
-    auto poll_telemetry = [&] {
-      for (auto [sock, dst, session] : {std::tuple{&master_tel, &mt, master_session},
-                                        std::tuple{&slave_tel, &st, slave_session}}) {
-        zmq::message_t msg;
-        while (sock->recv(msg, zmq::recv_flags::dontwait)) {
-          v1::Telemetry t;
-          if (t.ParseFromArray(msg.data(), static_cast<int>(msg.size())) &&
-              t.session_id() == session) {
-            *dst = t;
-          }
-        }
-      }
-    };
-    auto wait_until = [&](auto pred, std::chrono::milliseconds bound) {
-      const auto until = std::chrono::steady_clock::now() + bound;
-      while (!g_interrupted && std::chrono::steady_clock::now() < until) {
-        poll_telemetry();
-        if (mt && st && pred()) return true;
-        std::this_thread::sleep_for(10ms);
-      }
-      return false;
-    };
-    auto child_exited = [&] {
-      int status = 0;
-      return ::waitpid(master_pid, &status, WNOHANG) == master_pid ||
-             ::waitpid(slave_pid, &status, WNOHANG) == slave_pid;
-    };
-    const bool linked =
-        wait_until([&] { return mt->link().accepted() > 0 && st->link().accepted() > 0; }, 10s);
+    print_launched(out, a.instance, plan, pids);
+    LaunchTelemetry tel(plan, own[0].session_id, own[1].session_id);
+    const bool linked = tel.wait_until(
+        [&] { return tel.master().link().accepted() > 0 && tel.slave().link().accepted() > 0; },
+        10s);
     if (!linked) {
-      const bool exited = child_exited();
-      stop_all();
+      const bool exited = node_exited(pids);
+      stop_all(pids);
       if (g_interrupted) return kExitOk;
       err << "teleopctl launch: "
           << (exited ? "a node exited at start (see its messages above)"
@@ -491,53 +601,19 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
           << "\n";
       return kExitError;
     }
-    out << "master and slave linked: master session " << fmt::format("{:016x}", mt->session_id())
-        << ", slave session " << fmt::format("{:016x}", st->session_id()) << "\n";
-    if (engage) {
-      for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
-        for (const auto& [e, pid, keys] :
-             {std::tuple{master.endpoints.command, master_pid, master_client},
-              std::tuple{slave.endpoints.command, slave_pid, slave_client}}) {
-          const auto reply = send_node_command(e, kind, keys, 2000);
-          const std::string why = launch_reply_problem(kind, reply, pid);
-          if (!why.empty()) {
-            err << "teleopctl launch: " << v1::NodeCommand::Kind_Name(kind) << " " << e << ": "
-                << why << "\n";
-          }
-        }
-      }
-      const bool engaged =
-          wait_until([&] { return mt->mode() == v1::ENGAGED && st->mode() == v1::ENGAGED; }, 10s);
+    out << "master and slave linked: master session "
+        << fmt::format("{:016x}", tel.master().session_id()) << ", slave session "
+        << fmt::format("{:016x}", tel.slave().session_id()) << "\n";
+    if (a.engage) {
+      arm_and_engage(plan, pids, err);
+      const bool engaged = tel.wait_until(
+          [&] { return tel.master().mode() == v1::ENGAGED && tel.slave().mode() == v1::ENGAGED; },
+          10s);
       out << (engaged ? "engaged" : "not engaged within 10 s") << "\n";
     }
     out << "Ctrl-C stops both nodes.\n";
-    const auto start = std::chrono::steady_clock::now();
-    auto next_print = start;
-    while (!g_interrupted && !child_exited()) {
-      poll_telemetry();
-      const auto now = std::chrono::steady_clock::now();
-      if (duration_s > 0.0 && now - start >= std::chrono::duration<double>(duration_s)) break;
-      if (now >= next_print && mt && st) {
-        next_print += 1s;
-        const auto& ml = mt->link();
-        const double x_m =
-            mt->cycles_size() > 0 ? mt->cycles(mt->cycles_size() - 1).position_m() : 0.0;
-        const double x_s =
-            st->cycles_size() > 0 ? st->cycles(st->cycles_size() - 1).position_m() : 0.0;
-        out << fmt::format(
-                   "master {:<9} slave {:<9} x_m {:+8.3f} mm  x_s {:+8.3f} mm  round trip "
-                   "{:.3f} ms ({} samples)  loss {:.4f}  wake-up p99 {:.0f}/{:.0f} us  overruns "
-                   "{}/{}",
-                   mode_name(mt->mode()), mode_name(st->mode()), x_m * 1e3, x_s * 1e3,
-                   static_cast<double>(ml.round_trip_ns()) * 1e-6, ml.round_trip_samples(),
-                   ml.loss_fraction(), static_cast<double>(mt->loop().wakeup_p99_ns()) * 1e-3,
-                   static_cast<double>(st->loop().wakeup_p99_ns()) * 1e-3, mt->loop().overruns(),
-                   st->loop().overruns())
-            << std::endl;
-      }
-      std::this_thread::sleep_for(20ms);
-    }
-    const bool clean = stop_all();
+    print_state_until_stopped(tel, pids, a.duration_s, out);
+    const bool clean = stop_all(pids);
     out << (clean ? "both nodes stopped cleanly" : "a node did not stop cleanly") << "\n";
     return clean ? kExitOk : kExitError;
   });

@@ -93,17 +93,24 @@ std::string relay_usage() {
          "its counts once a second and at the end; stops on SIGINT/SIGTERM.\n";
 }
 
-int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+namespace {
+
+struct RelayArgs {
   std::string from;
   std::string to;
-  RelayFaults f;
+  RelayFaults faults;
+};
+
+RelayArgs parse_relay_args(const std::vector<std::string>& args) {
+  RelayArgs r;
+  RelayFaults& f = r.faults;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
     if (a == "--from") {
-      from = to_endpoint(cur.value("--from"));
+      r.from = to_endpoint(cur.value("--from"));
     } else if (a == "--to") {
-      to = to_endpoint(cur.value("--to"));
+      r.to = to_endpoint(cur.value("--to"));
     } else if (a == "--delay-ms") {
       f.delay_ms = non_negative(cur.value("--delay-ms"), "--delay-ms");
     } else if (a == "--jitter-ms") {
@@ -126,29 +133,145 @@ int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostr
       throw UsageError("unknown argument '" + a + "'");
     }
   }
-  if (from.empty() || to.empty()) throw UsageError("--from and --to are required");
+  if (r.from.empty() || r.to.empty()) throw UsageError("--from and --to are required");
   if (f.blackout_ms > 0.0 && f.blackout_at_s < 0.0) {
     throw UsageError("--blackout-ms goes with --blackout-at-s");
   }
+  return r;
+}
+
+zmq::socket_t connect_subscriber(zmq::context_t& ctx, const std::string& from) {
+  zmq::socket_t sub(ctx, zmq::socket_type::sub);
+  sub.set(zmq::sockopt::linger, 0);
+  sub.set(zmq::sockopt::rcvhwm, 100000);
+  sub.set(zmq::sockopt::maxmsgsize, std::int64_t{16} << 20);
+  sub.set(zmq::sockopt::reconnect_ivl, 10);
+  sub.set(zmq::sockopt::subscribe, "");
+  sub.connect(from);
+  return sub;
+}
+
+zmq::socket_t bind_publisher(zmq::context_t& ctx, const std::string& to) {
+  zmq::socket_t pub(ctx, zmq::socket_type::pub);
+  pub.set(zmq::sockopt::linger, 0);
+  pub.set(zmq::sockopt::sndhwm, 100000);
+  // Its only inbound traffic is the handshake and subscriptions (see zmq_sockets.hpp).
+  pub.set(zmq::sockopt::maxmsgsize, transport::kMaxPublisherInboundBytes);
+  try {
+    pub.bind(to);
+  } catch (const zmq::error_t& e) {
+    throw std::runtime_error(fmt::format("--to {}: cannot bind: {}", to, e.what()));
+  }
+  return pub;
+}
+
+// The relayed messages between their arrival and their release, as the planner decides.
+class RelayQueue {
+ public:
+  explicit RelayQueue(const RelayFaults& faults) : planner_(faults) {}
+
+  // Sends every message whose release time has come.
+  void send_due(zmq::socket_t& pub, Clock::time_point now) {
+    while (!queue_.empty() && queue_.begin()->first <= now) {
+      const Frames& frames = *queue_.begin()->second;
+      for (std::size_t i = 0; i < frames.size(); ++i) {
+        zmq::message_t copy;
+        copy.copy(const_cast<zmq::message_t&>(frames[i]));
+        (void)pub.send(
+            copy, i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::dontwait);
+      }
+      ++sent_;
+      queue_.erase(queue_.begin());
+    }
+  }
+
+  // A held message that no next one came for within 50 ms goes out as planned.
+  void release_stale_hold(Clock::time_point now) {
+    if (held_ && now - held_times_.front() > std::chrono::milliseconds(50)) {
+      for (const auto& t : held_times_) queue_.emplace(t, held_);
+      held_.reset();
+    }
+  }
+
+  // How long to wait for input: 1 ms, or none when a release is due within it.
+  [[nodiscard]] std::chrono::milliseconds poll_timeout(Clock::time_point now) const {
+    long timeout_us = 1000;
+    if (!queue_.empty()) {
+      timeout_us = std::clamp<long>(
+          static_cast<long>(
+              std::chrono::duration_cast<std::chrono::microseconds>(queue_.begin()->first - now)
+                  .count()),
+          0L, 1000L);
+    }
+    return std::chrono::milliseconds(timeout_us >= 1000 ? 1 : 0);
+  }
+
+  // Takes every message waiting on `sub` (all its frames) and queues it as planned.
+  void receive(zmq::socket_t& sub) {
+    zmq::message_t part;
+    while (sub.recv(part, zmq::recv_flags::dontwait)) {
+      auto frames = std::make_shared<Frames>();
+      frames->push_back(std::move(part));
+      while (frames->back().more()) {
+        zmq::message_t next;
+        if (!sub.recv(next, zmq::recv_flags::none)) break;
+        frames->push_back(std::move(next));
+      }
+      take(std::move(frames), Clock::now());
+    }
+  }
+
+  [[nodiscard]] std::string counts() const {
+    return fmt::format(
+        "relay: received {} sent {} dropped {} blacked out {} duplicated {} reordered {} "
+        "queued {}\n",
+        planner_.received, sent_, planner_.dropped, planner_.blacked_out, planner_.duplicated,
+        planner_.reordered, queue_.size());
+  }
+
+ private:
+  void take(std::shared_ptr<Frames> frames, Clock::time_point at) {
+    if (!first_) first_ = at;
+    const RelayPlan plan = planner_.plan(std::chrono::duration<double>(at - *first_).count());
+    std::vector<Clock::time_point> times;
+    for (const double d : plan.delays_ms) {
+      times.push_back(at + std::chrono::duration_cast<Clock::duration>(
+                               std::chrono::duration<double, std::milli>(d)));
+    }
+    if (times.empty()) return;
+    // A held message goes out just after this one.
+    if (held_) {
+      const Clock::time_point after = times.front() + std::chrono::microseconds(10);
+      for (const auto& t : held_times_) queue_.emplace(std::max(t, after), held_);
+      held_.reset();
+    }
+    if (plan.hold) {
+      held_ = std::move(frames);
+      held_times_ = times;
+    } else {
+      for (const auto& t : times) queue_.emplace(t, frames);
+    }
+  }
+
+  RelayPlanner planner_;
+  // Messages waiting for their release time (several copies of one share its frames).
+  std::multimap<Clock::time_point, std::shared_ptr<Frames>> queue_{};
+  // A message held back until after the next one (null: none).
+  std::shared_ptr<Frames> held_{};
+  std::vector<Clock::time_point> held_times_{};
+  std::optional<Clock::time_point> first_{};
+  std::uint64_t sent_{0};
+};
+
+}  // namespace
+
+int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
+  const RelayArgs r = parse_relay_args(args);
+  const RelayFaults& f = r.faults;
   return run_guarded("relay", err, [&]() -> int {
     zmq::context_t ctx(1);
-    zmq::socket_t sub(ctx, zmq::socket_type::sub);
-    sub.set(zmq::sockopt::linger, 0);
-    sub.set(zmq::sockopt::rcvhwm, 100000);
-    sub.set(zmq::sockopt::maxmsgsize, std::int64_t{16} << 20);
-    sub.set(zmq::sockopt::reconnect_ivl, 10);
-    sub.set(zmq::sockopt::subscribe, "");
-    sub.connect(from);
-    zmq::socket_t pub(ctx, zmq::socket_type::pub);
-    pub.set(zmq::sockopt::linger, 0);
-    pub.set(zmq::sockopt::sndhwm, 100000);
-    // Its only inbound traffic is the handshake and subscriptions (see zmq_sockets.hpp).
-    pub.set(zmq::sockopt::maxmsgsize, transport::kMaxPublisherInboundBytes);
-    try {
-      pub.bind(to);
-    } catch (const zmq::error_t& e) {
-      throw std::runtime_error(fmt::format("--to {}: cannot bind: {}", to, e.what()));
-    }
+    zmq::socket_t sub = connect_subscriber(ctx, r.from);
+    zmq::socket_t pub = bind_publisher(ctx, r.to);
     struct sigaction sa {};
     sa.sa_handler = on_relay_signal;
     sigaction(SIGINT, &sa, nullptr);
@@ -156,95 +279,27 @@ int run_relay(const std::vector<std::string>& args, std::ostream& out, std::ostr
     out << fmt::format(
                "relaying {} -> {}: delay {} ms, jitter {} ms, drop {}, duplicate {}, reorder {}, "
                "seed {}\n",
-               from, to, f.delay_ms, f.jitter_ms, f.drop, f.duplicate, f.reorder, f.seed)
+               r.from, r.to, f.delay_ms, f.jitter_ms, f.drop, f.duplicate, f.reorder, f.seed)
         << std::flush;
-    RelayPlanner planner(f);
-    // Messages waiting for their release time (several copies of one share its frames).
-    std::multimap<Clock::time_point, std::shared_ptr<Frames>> queue;
-    // A message held back until after the next one (null: none).
-    std::shared_ptr<Frames> held;
-    std::vector<Clock::time_point> held_times;
-    std::optional<Clock::time_point> first;
-    std::uint64_t sent = 0;
-    auto report = [&] {
-      out << fmt::format(
-                 "relay: received {} sent {} dropped {} blacked out {} duplicated {} reordered {} "
-                 "queued {}\n",
-                 planner.received, sent, planner.dropped, planner.blacked_out, planner.duplicated,
-                 planner.reordered, queue.size())
-          << std::flush;
-    };
+    RelayQueue queue(f);
     Clock::time_point next_report = Clock::now() + std::chrono::seconds(1);
     while (!g_stop.load()) {
       const Clock::time_point now = Clock::now();
-      // Send what is due.
-      while (!queue.empty() && queue.begin()->first <= now) {
-        const Frames& frames = *queue.begin()->second;
-        for (std::size_t i = 0; i < frames.size(); ++i) {
-          zmq::message_t copy;
-          copy.copy(const_cast<zmq::message_t&>(frames[i]));
-          (void)pub.send(
-              copy, i + 1 < frames.size() ? zmq::send_flags::sndmore : zmq::send_flags::dontwait);
-        }
-        ++sent;
-        queue.erase(queue.begin());
-      }
+      queue.send_due(pub, now);
       if (now >= next_report) {
-        report();
+        out << queue.counts() << std::flush;
         next_report += std::chrono::seconds(1);
       }
-      // A held message that no next one came for within 50 ms goes out as planned.
-      if (held && now - held_times.front() > std::chrono::milliseconds(50)) {
-        for (const auto& t : held_times) queue.emplace(t, held);
-        held.reset();
-      }
-      long timeout_us = 1000;
-      if (!queue.empty()) {
-        timeout_us = std::clamp<long>(
-            static_cast<long>(
-                std::chrono::duration_cast<std::chrono::microseconds>(queue.begin()->first - now)
-                    .count()),
-            0L, 1000L);
-      }
+      queue.release_stale_hold(now);
       zmq::pollitem_t item{sub.handle(), 0, ZMQ_POLLIN, 0};
       try {
-        (void)zmq::poll(&item, 1, std::chrono::milliseconds(timeout_us >= 1000 ? 1 : 0));
+        (void)zmq::poll(&item, 1, queue.poll_timeout(now));
       } catch (const zmq::error_t&) {
         continue;
       }
-      zmq::message_t part;
-      while (sub.recv(part, zmq::recv_flags::dontwait)) {
-        auto frames = std::make_shared<Frames>();
-        frames->push_back(std::move(part));
-        while (frames->back().more()) {
-          zmq::message_t next;
-          if (!sub.recv(next, zmq::recv_flags::none)) break;
-          frames->push_back(std::move(next));
-        }
-        const Clock::time_point at = Clock::now();
-        if (!first) first = at;
-        const RelayPlan plan = planner.plan(std::chrono::duration<double>(at - *first).count());
-        std::vector<Clock::time_point> times;
-        for (const double d : plan.delays_ms) {
-          times.push_back(at + std::chrono::duration_cast<Clock::duration>(
-                                   std::chrono::duration<double, std::milli>(d)));
-        }
-        if (times.empty()) continue;
-        // A held message goes out just after this one.
-        if (held) {
-          const Clock::time_point after = times.front() + std::chrono::microseconds(10);
-          for (const auto& t : held_times) queue.emplace(std::max(t, after), held);
-          held.reset();
-        }
-        if (plan.hold) {
-          held = frames;
-          held_times = times;
-        } else {
-          for (const auto& t : times) queue.emplace(t, frames);
-        }
-      }
+      queue.receive(sub);
     }
-    report();
+    out << queue.counts() << std::flush;
     return kExitOk;
   });
 }

@@ -19,9 +19,7 @@ std::optional<v1::SupervisorReply> supervisor_request(const std::string& endpoin
                                                       const std::string& secret_key_file,
                                                       const std::string& server_key) {
   zmq::context_t ctx(1);
-  transport::LinkSecurity security;
-  if (!secret_key_file.empty()) security.own = transport::load_secret_key_file(secret_key_file);
-  if (!server_key.empty()) security.server_public_key = transport::load_public_key(server_key);
+  const transport::LinkSecurity security = transport::client_security(secret_key_file, server_key);
   zmq::socket_t client = transport::make_command_client(ctx, endpoint, security,
                                                         std::chrono::milliseconds(timeout_ms));
   const auto bytes = transport::request_reply(client, request.SerializeAsString());

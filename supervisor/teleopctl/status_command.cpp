@@ -57,12 +57,8 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
       key = cur.value("--key");
     } else if (a == "--timeout-ms") {
       timeout_ms = parse_timeout_ms(cur.value("--timeout-ms"));
-    } else if (a.rfind("--", 0) == 0) {
-      throw UsageError("unknown option '" + a + "'");
-    } else if (config_path.empty()) {
-      config_path = a;
     } else {
-      throw UsageError("unexpected argument '" + a + "'");
+      take_only_positional(a, config_path);
     }
   }
   return run_guarded("estop", err, [&]() -> int {
