@@ -31,7 +31,7 @@ namespace {
 using namespace std::chrono_literals;
 using transport::Role;
 
-v1::NodeMode to_proto(node::Mode m) { return static_cast<v1::NodeMode>(static_cast<int>(m) + 1); }
+v1::NodeMode to_proto(node::Mode m) { return static_cast<v1::NodeMode>(node::wire_mode(m)); }
 v1::NodeRole to_proto(Role r) {
   return r == Role::kMaster ? v1::MASTER
                             : (r == Role::kSlave ? v1::SLAVE : v1::NODE_ROLE_UNSPECIFIED);
