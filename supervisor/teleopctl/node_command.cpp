@@ -77,25 +77,6 @@ std::string find_node_binary(const std::string& name) {
                            ")");
 }
 
-pid_t spawn(const std::string& binary, const std::vector<std::string>& args) {
-  const pid_t parent = ::getpid();
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    // A launch that dies (kill -9) takes its processes with it (SIGTERM: a clean stop), so no
-    // stale instance is left holding the ports.
-    ::prctl(PR_SET_PDEATHSIG, SIGTERM);
-    if (::getppid() != parent) ::_exit(127);
-    std::vector<char*> argv;
-    argv.push_back(const_cast<char*>(binary.c_str()));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(binary.c_str(), argv.data());
-    ::_exit(127);
-  }
-  if (pid < 0) throw std::runtime_error("fork failed");
-  return pid;
-}
-
 // --instance N: a whole number in 0..kMaxInstance.
 int parse_instance(const std::string& text) {
   const double v = parse_number(text, "--instance");
@@ -281,13 +262,13 @@ LaunchedPids spawn_processes(const LaunchArgs& a) {
   const std::string slave_bin = find_node_binary("teleop-slave");
   const std::string supervisor_bin = a.supervise ? find_node_binary("teleop-supervisor") : "";
   LaunchedPids pids;
-  pids.master = spawn(master_bin, node_args);
-  pids.slave = spawn(slave_bin, node_args);
+  pids.master = spawn_process(master_bin, node_args);
+  pids.slave = spawn_process(slave_bin, node_args);
   if (a.supervise) {
     std::vector<std::string> sup_args = node_args;
     sup_args.push_back("--record-dir");
     sup_args.push_back(a.record_dir);
-    pids.supervisor = spawn(supervisor_bin, sup_args);
+    pids.supervisor = spawn_process(supervisor_bin, sup_args);
   }
   return pids;
 }
@@ -617,6 +598,43 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
     out << (clean ? "both nodes stopped cleanly" : "a node did not stop cleanly") << "\n";
     return clean ? kExitOk : kExitError;
   });
+}
+
+pid_t spawn_process(const std::string& binary, const std::vector<std::string>& args) {
+  const pid_t parent = ::getpid();
+  // Ctrl-C and the stop signals are held across the fork: a child that took one before its
+  // exec ran launch's own handler (which only sets a flag), went on to start the node, and
+  // nobody stopped that node (a launch refused at once hung in stop_all).
+  sigset_t stops;
+  sigset_t before;
+  sigemptyset(&stops);
+  sigaddset(&stops, SIGINT);
+  sigaddset(&stops, SIGTERM);
+  (void)::pthread_sigmask(SIG_BLOCK, &stops, &before);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    // The default actions first, then the signals let through: a stop sent meanwhile ends the
+    // child here.
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    sigemptyset(&dfl.sa_mask);
+    (void)::sigaction(SIGINT, &dfl, nullptr);
+    (void)::sigaction(SIGTERM, &dfl, nullptr);
+    // A launch that dies (kill -9) takes its processes with it (SIGTERM: a clean stop), so no
+    // stale instance is left holding the ports.
+    ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+    if (::getppid() != parent) ::_exit(127);
+    (void)::pthread_sigmask(SIG_SETMASK, &before, nullptr);
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(binary.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    ::execv(binary.c_str(), argv.data());
+    ::_exit(127);
+  }
+  (void)::pthread_sigmask(SIG_SETMASK, &before, nullptr);
+  if (pid < 0) throw std::runtime_error("fork failed");
+  return pid;
 }
 
 }  // namespace teleop::ctl

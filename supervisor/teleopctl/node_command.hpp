@@ -3,6 +3,8 @@
 // both nodes on loopback with simulated devices, engaged, stopped cleanly on Ctrl-C.
 #pragma once
 
+#include <sys/types.h>
+
 #include <optional>
 #include <ostream>
 #include <string>
@@ -17,6 +19,10 @@ inline constexpr int kExitNoReply = 4;  // no reply within the timeout
 
 [[nodiscard]] std::string node_usage();
 int run_node_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
+
+// Starts `binary` with `args` as a child that dies with this process (SIGTERM). A SIGINT or
+// SIGTERM sent to the child at any time, even before its exec, ends it.
+[[nodiscard]] pid_t spawn_process(const std::string& binary, const std::vector<std::string>& args);
 
 // "HOST:PORT" -> "tcp://HOST:PORT"; a full endpoint is kept.
 [[nodiscard]] std::string to_endpoint(const std::string& address);
