@@ -359,8 +359,8 @@ int main(int argc, char** argv) {
   for (const std::string& d : defects) fmt::print("{}\n", d);
   if (!notes.empty()) {
     fmt::print(
-        "\nnarrow unstable windows below the engine's limit (README: a known limit of "
-        "the x1.2 scan):\n");
+        "\nnarrow unstable windows below the engine's limit (docs/stability-limits.md: what "
+        "the old x1.2 scan missed):\n");
     for (const std::string& n : notes) fmt::print("{}\n", n);
   }
   return defects.empty() ? 0 : 1;
