@@ -147,14 +147,19 @@ void SupervisorCore::update_model() {
                     live_.sample_rate_hz),
         {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
   publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
-  if (!rtt_grew || guard_.assess(live_).acceptable()) return;
+  // Stability is not monotonic in the round trip (nor in the rate): a shorter one can make the
+  // model miss its requirement as well as a longer one. Whatever changed, a model that misses
+  // it lowers the fixtures.
+  if (guard_.assess(live_).acceptable()) return;
   // Announced like every change the supervisor makes: an ACTION alarm naming it. A refused
   // lowering is tried again kLoweringRetryNs after this attempt.
   last_lowering_try_ns_ = now_ns_;
-  const Lowering l = lower_fixtures("the measured round trip grew");
+  const Lowering l = lower_fixtures(rtt_grew ? "the measured round trip grew"
+                                             : "the measured round trip or rate changed");
   alarm(v1::Alarm::ACTION, "round_trip", "system",
-        fmt::format("the model with a {}-sample round trip no longer meets the requirement",
-                    live_.round_trip_samples),
+        fmt::format("the model with a {}-sample round trip at {:.1f} Hz no longer meets the "
+                    "requirement",
+                    live_.round_trip_samples, live_.sample_rate_hz),
         {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"},
          {"min_damping_ratio", guard_.assess(live_).min_damping_ratio, ""}},
         l.action);
@@ -170,13 +175,13 @@ void SupervisorCore::retry_lowering() {
     lowering_pending_ = false;
     return;
   }
-  const Lowering l = lower_fixtures("the measured round trip grew (retried)");
+  const Lowering l = lower_fixtures("the measured round trip or rate (retried)");
   if (!l.applied) return;
   lowering_pending_ = false;
   alarm(v1::Alarm::ACTION, "round_trip", "system",
-        fmt::format("the model with a {}-sample round trip no longer meets the requirement "
-                    "(retried)",
-                    live_.round_trip_samples),
+        fmt::format("the model with a {}-sample round trip at {:.1f} Hz no longer meets the "
+                    "requirement (retried)",
+                    live_.round_trip_samples, live_.sample_rate_hz),
         {{"round_trip_p99", static_cast<double>(measured_round_trip_ns_) * 1e-6, "ms"},
          {"min_damping_ratio", guard_.assess(live_).min_damping_ratio, ""}},
         l.action);

@@ -348,6 +348,49 @@ TEST(SupervisorCore, ALongerRoundTripLowersTheFixtureAndARefusedLoweringIsRetrie
   EXPECT_DOUBLE_EQ(core.live().slave_fixture_N_per_m, lowered);
 }
 
+// Found by TwoHosts in CI (issue 16 session): stability is not monotonic in the round trip. The
+// paddles' 3500 N/m slave fixture is stable at 12 samples and unstable at 10 (and 8); the link
+// measured 12 at first, then 10 once it settled, and the supervisor lowered nothing because it
+// acted only when the round trip grew. Any measured change that makes the model miss its
+// requirement now lowers the fixtures.
+TEST(SupervisorCore, AShorterRoundTripThatMakesTheModelUnstableLowersTheFixtureToo) {
+  const config::LoadedConfig c = config::load_config_text(paddles(3500.0), "test");
+  TeleopParams p = config::to_teleop_params(c);
+  p.round_trip_delay_samples = 12;
+  ASSERT_EQ(stability::analyze(p).verdict, stability::Verdict::kStable);
+  p.round_trip_delay_samples = 10;
+  ASSERT_EQ(stability::analyze(p).verdict, stability::Verdict::kUnstable);
+
+  FakeNodes nodes(c);
+  SupervisorCore core(c, {}, nodes);
+  core.start(kT0);
+  nodes.round_trip_p99_ns = 11'500'000;  // 12 samples: stable, nothing to lower
+  nodes.run(core, kT0, kT0 + 1000 * kMs, still);
+  EXPECT_EQ(core.live().round_trip_samples, 12);
+  EXPECT_TRUE(nodes.sent_of(v1::NodeCommand::RETUNE).empty());
+  // 9.5 ms from now on: the model comes down to 10 samples once the 12 has been out of the
+  // window for 5 s (RoundTripModel), and is then unstable.
+  nodes.round_trip_p99_ns = 9'500'000;
+  nodes.run(core, kT0 + 1000 * kMs, kT0 + 8000 * kMs, still);
+  EXPECT_EQ(core.live().round_trip_samples, 10);
+  const auto retunes = nodes.sent_of(v1::NodeCommand::RETUNE);
+  ASSERT_EQ(retunes.size(), 2u);
+  const double lowered = retunes[0].command.update().slave_fixture_stiffness_n_per_m();
+  EXPECT_LE(lowered, 1750.0);
+  p.slave_fixture.stiffness_N_per_m = lowered;
+  EXPECT_EQ(stability::analyze(p).verdict, stability::Verdict::kStable);
+  std::vector<v1::Alarm> actions;
+  for (const v1::Alarm& a : nodes.alarms_of("round_trip")) {
+    if (a.severity() == v1::Alarm::ACTION) actions.push_back(a);
+  }
+  ASSERT_EQ(actions.size(), 1u);
+  EXPECT_NE(actions[0].action().find("lowered fixtures"), std::string::npos);
+  // Lowered within one check of the model's change to 10 samples (6 s: the 12 measured until
+  // 1 s, held 5 s).
+  EXPECT_GE(actions[0].time_ns(), kT0 + 6000 * kMs);
+  EXPECT_LE(actions[0].time_ns(), kT0 + 6200 * kMs);
+}
+
 TEST(SupervisorCore, ASilentNodeIsAlarmedAfterHalfASecondButTheSupervisorsOwnStallIsExcused) {
   const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
   FakeNodes nodes(c);
