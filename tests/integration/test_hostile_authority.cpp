@@ -10,8 +10,10 @@
 #include <sys/time.h>
 
 #include <algorithm>
+#include <chrono>
 #include <iostream>
 #include <memory>
+#include <thread>
 
 #include "common/transport/zmq_security.hpp"
 #include "tests/integration/cli_harness.hpp"
@@ -218,6 +220,21 @@ std::optional<v1::Alarm> alarm_of(const v1::SupervisorStatus& s, const std::stri
 // (a) Plaintext, no opt-in: a RETUNE straight to each node is refused, naming why, and the
 // nodes' parameters in force stay the file's past the change's apply point. The node says at
 // start that it refuses retunes.
+
+// `teleopctl set`, asked again while the supervisor says it has not heard both nodes yet: it
+// starts with the nodes and hears their first telemetry a moment after the test's own taps
+// do (longer under the sanitizers). Any other answer is returned at once.
+CliResult set_once_both_heard(const std::string& args) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(10);
+  CliResult r = teleopctl(args);
+  while (r.out.find("both nodes must be running") != std::string::npos &&
+         std::chrono::steady_clock::now() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    r = teleopctl(args);
+  }
+  return r;
+}
+
 TEST(HostileAuthority, PlaintextRetuneStraightToANodeIsRefusedAndNothingChanges) {
   TempDir dir;
   SystemPorts p;
@@ -584,7 +601,7 @@ TEST(HostileAuthority, ReplayedOrReusedChangeNumberIsRefusedByTheNodes) {
   ASSERT_TRUE(sys.linked()) << sys.logs();
   ASSERT_NO_FATAL_FAILURE(arm_and_engage(sys, p));
   const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(p.request);
-  const CliResult set = teleopctl("set slave.fixture.stiffness_N_per_m=150" + sup);
+  const CliResult set = set_once_both_heard("set slave.fixture.stiffness_N_per_m=150" + sup);
   ASSERT_EQ(set.exit_code, 0) << set.out << sys.logs();
   for (const TelemetryTap* tap : {&sys.mt(), &sys.st()}) {
     ASSERT_TRUE(tap->wait_for([](const v1::Telemetry& t) {
@@ -607,7 +624,7 @@ TEST(HostileAuthority, ReplayedOrReusedChangeNumberIsRefusedByTheNodes) {
     EXPECT_EQ(t->active().slave_fixture_stiffness_n_per_m(), 150.0);
     EXPECT_EQ(t->mode(), v1::ENGAGED);
   }
-  const CliResult next = teleopctl("set slave.fixture.stiffness_N_per_m=250" + sup);
+  const CliResult next = set_once_both_heard("set slave.fixture.stiffness_N_per_m=250" + sup);
   ASSERT_EQ(next.exit_code, 0) << next.out << sys.logs();
   EXPECT_TRUE(sys.st().wait_for([](const v1::Telemetry& t) {
     return t.active().change_id() == 2 && t.active().slave_fixture_stiffness_n_per_m() == 250.0;
@@ -637,14 +654,14 @@ TEST(HostileAuthority, ChangeNumberTakenAheadOfTheSupervisorIsCaught) {
   EXPECT_EQ(alarm->side(), "slave");
   EXPECT_EQ(alarm->severity(), v1::Alarm::CRITICAL);
   const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(p.request);
-  const CliResult refused = teleopctl("set slave.fixture.stiffness_N_per_m=200" + sup);
+  const CliResult refused = set_once_both_heard("set slave.fixture.stiffness_N_per_m=200" + sup);
   EXPECT_NE(refused.exit_code, 0) << refused.out;
   EXPECT_NE(refused.out.find("not newer than change 1"), std::string::npos) << refused.out;
   // The master had taken that change (1): since issue 16's review the supervisor rolls it back
   // on both nodes as change 2, the approved values under a number the slave takes.
   EXPECT_NE(refused.out.find("rolled back on both nodes as change 2"), std::string::npos)
       << refused.out;
-  const CliResult taken = teleopctl("set slave.fixture.stiffness_N_per_m=200" + sup);
+  const CliResult taken = set_once_both_heard("set slave.fixture.stiffness_N_per_m=200" + sup);
   ASSERT_EQ(taken.exit_code, 0) << taken.out << sys.logs();
   // Approved values back in force on the slave: the audit is satisfied again (change 2, the
   // roll-back, and 3, the second set, both carry them).
@@ -664,9 +681,10 @@ TEST(HostileAuthority, GuardedSetsThroughTheSupervisorRaiseNoFalseAlarm) {
   ASSERT_TRUE(sys.linked()) << sys.logs();
   ASSERT_NO_FATAL_FAILURE(arm_and_engage(sys, p));
   const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(p.request);
-  const CliResult first = teleopctl("set slave.fixture.stiffness_N_per_m=150 gains.kps=550" + sup);
+  const CliResult first =
+      set_once_both_heard("set slave.fixture.stiffness_N_per_m=150 gains.kps=550" + sup);
   ASSERT_EQ(first.exit_code, 0) << first.out << sys.logs();
-  const CliResult second = teleopctl("set slave.fixture.stiffness_N_per_m=250" + sup);
+  const CliResult second = set_once_both_heard("set slave.fixture.stiffness_N_per_m=250" + sup);
   ASSERT_EQ(second.exit_code, 0) << second.out << sys.logs();
   for (const TelemetryTap* tap : {&sys.mt(), &sys.st()}) {
     ASSERT_TRUE(tap->wait_for([](const v1::Telemetry& t) {
@@ -703,9 +721,9 @@ TEST(HostileAuthority, UnderCurveAGuardedSetThroughTheSupervisorIsApplied) {
   ASSERT_NO_FATAL_FAILURE(
       arm_and_engage(sys, p, curve_as(k.console, k.master), curve_as(k.console, k.slave)));
   const CliResult set =
-      teleopctl("set slave.fixture.stiffness_N_per_m=150 --supervisor 127.0.0.1:" +
-                std::to_string(p.request) + " --key " + k.console.key_file.string() +
-                " --server-key " + k.supervisor.pub_file.string());
+      set_once_both_heard("set slave.fixture.stiffness_N_per_m=150 --supervisor 127.0.0.1:" +
+                          std::to_string(p.request) + " --key " + k.console.key_file.string() +
+                          " --server-key " + k.supervisor.pub_file.string());
   ASSERT_EQ(set.exit_code, 0) << set.out << sys.logs();
   for (const TelemetryTap* tap : {&sys.mt(), &sys.st()}) {
     ASSERT_TRUE(tap->wait_for([](const v1::Telemetry& t) {
