@@ -156,14 +156,19 @@ void SupervisorCore::update_model() {
   last_lowering_try_ns_ = now_ns_;
   const Lowering l = lower_fixtures(rtt_grew ? "the measured round trip grew"
                                              : "the measured round trip or rate changed");
+  announce_lowering(l, "");
+  lowering_pending_ = !l.applied;
+}
+
+// The ACTION alarm of a lowering because the measured model misses its requirement.
+void SupervisorCore::announce_lowering(const Lowering& l, const char* suffix) {
   alarm(v1::Alarm::ACTION, "round_trip", "system",
         fmt::format("the model with a {}-sample round trip at {:.1f} Hz no longer meets the "
-                    "requirement",
-                    live_.round_trip_samples, live_.sample_rate_hz),
-        {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"},
+                    "requirement{}",
+                    live_.round_trip_samples, live_.sample_rate_hz, suffix),
+        {{"round_trip_p99", static_cast<double>(measured_round_trip_ns_) * 1e-6, "ms"},
          {"min_damping_ratio", guard_.assess(live_).min_damping_ratio, ""}},
         l.action);
-  lowering_pending_ = !l.applied;
 }
 
 // A lowering the guard could not apply (a node's telemetry not in yet, say) is tried again
@@ -175,16 +180,10 @@ void SupervisorCore::retry_lowering() {
     lowering_pending_ = false;
     return;
   }
-  const Lowering l = lower_fixtures("the measured round trip or rate (retried)");
+  const Lowering l = lower_fixtures("the measured round trip or rate changed (retried)");
   if (!l.applied) return;
   lowering_pending_ = false;
-  alarm(v1::Alarm::ACTION, "round_trip", "system",
-        fmt::format("the model with a {}-sample round trip at {:.1f} Hz no longer meets the "
-                    "requirement (retried)",
-                    live_.round_trip_samples, live_.sample_rate_hz),
-        {{"round_trip_p99", static_cast<double>(measured_round_trip_ns_) * 1e-6, "ms"},
-         {"min_damping_ratio", guard_.assess(live_).min_damping_ratio, ""}},
-        l.action);
+  announce_lowering(l, " (retried)");
 }
 
 // A sustained oscillation, or else an active port, on one node.

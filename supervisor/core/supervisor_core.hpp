@@ -181,6 +181,7 @@ class SupervisorCore {
   [[nodiscard]] Finding finding(NodeView& n) const;
   void disengage_both(const NodeView& n, const Finding& f);
   Lowering lower_fixtures(const std::string& why);
+  void announce_lowering(const Lowering& l, const char* suffix);
   void check_recorder();
 
   SupervisorPorts& ports_;
