@@ -15,7 +15,6 @@
 namespace teleop::test {
 namespace {
 
-constexpr double kPeriodNs = 1e6;
 constexpr std::uint32_t kFaultBit = 1U << 2;  // device::SampleFlags::kFault
 
 // The paper's paddles at 1 kHz, symmetric PD, a fixed human pushing 1 N from engagement on.
