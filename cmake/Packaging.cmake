@@ -9,6 +9,8 @@
 #   share/doc/teleop/README.md, share/doc/teleop/docs/*.md   (the README's links are relative)
 #   lib/systemd/system/teleop-{master,slave,supervisor}.service   (TELEOP_SYSTEMD_UNIT_DIR)
 #   lib/sysusers.d/teleop.conf, lib/tmpfiles.d/teleop.conf, lib/udev/rules.d/70-teleop.rules
+#   share/man/man1/{teleopctl,teleop-master,teleop-slave,teleop-supervisor}.1  (help2man)
+#   share/bash-completion/completions/{the same four names}
 # Nothing goes to /etc: the units read /etc/teleop/{master,slave,supervisor}.textproto, which
 # the administrator writes (from the examples); the package has no conffiles.
 include(GNUInstallDirs)
@@ -34,6 +36,42 @@ install(FILES "${_teleop_deploy}/systemd/teleop-master.service"
 install(FILES "${_teleop_deploy}/sysusers.d/teleop.conf" DESTINATION ${TELEOP_SYSUSERS_DIR})
 install(FILES "${_teleop_deploy}/tmpfiles.d/teleop.conf" DESTINATION ${TELEOP_TMPFILES_DIR})
 install(FILES "${_teleop_deploy}/udev/70-teleop.rules" DESTINATION ${TELEOP_UDEV_RULES_DIR})
+# Bash completion: one script, installed under each program's name (bash-completion loads a
+# program's completion from the file of its name).
+foreach(_prog teleopctl teleop-master teleop-slave teleop-supervisor)
+  install(FILES "${_teleop_deploy}/bash-completion/teleopctl"
+          DESTINATION ${CMAKE_INSTALL_DATADIR}/bash-completion/completions RENAME ${_prog})
+endforeach()
+
+# A man page per program, generated from its --help (scripts/make-man.sh, help2man). Not in a
+# sanitizer build (its binaries are not installed) nor without help2man (install-deps.sh).
+find_program(TELEOP_HELP2MAN help2man)
+if(TELEOP_HELP2MAN AND NOT TELEOP_SANITIZE AND NOT CMAKE_CROSSCOMPILING)
+  set(_teleop_man_dir "${PROJECT_BINARY_DIR}/man")
+  set(_teleop_man_pages)
+  foreach(_entry
+          "teleopctl|the teleoperator's console: analyse, simulate, launch, command, replay"
+          "teleop-master|the master node of a bilateral teleoperator (1 kHz real-time loop)"
+          "teleop-slave|the slave node of a bilateral teleoperator (1 kHz real-time loop)"
+          "teleop-supervisor|watches a teleoperator: stability, guarded changes, recording")
+    string(REPLACE "|" ";" _parts "${_entry}")
+    list(GET _parts 0 _prog)
+    list(GET _parts 1 _desc)
+    add_custom_command(
+      OUTPUT "${_teleop_man_dir}/${_prog}.1"
+      COMMAND ${CMAKE_COMMAND} -E make_directory "${_teleop_man_dir}"
+      COMMAND "${PROJECT_SOURCE_DIR}/scripts/make-man.sh" "$<TARGET_FILE:${_prog}>"
+              "${_teleop_man_dir}/${_prog}.1" "${_desc}"
+      DEPENDS ${_prog} "${PROJECT_SOURCE_DIR}/scripts/make-man.sh"
+      VERBATIM)
+    list(APPEND _teleop_man_pages "${_teleop_man_dir}/${_prog}.1")
+  endforeach()
+  add_custom_target(teleop_man_pages ALL DEPENDS ${_teleop_man_pages})
+  install(FILES ${_teleop_man_pages} DESTINATION ${CMAKE_INSTALL_MANDIR}/man1)
+else()
+  message(STATUS "teleop: no man pages (help2man not found, or a sanitizer build)")
+endif()
+
 # The units name /usr/bin/teleop-*: say so when the binaries go elsewhere.
 install(CODE [[
   if(NOT CMAKE_INSTALL_PREFIX STREQUAL "/usr")

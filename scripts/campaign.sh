@@ -115,9 +115,9 @@ if [[ $launch_rc -ne 0 || -z "$file" || ! -s "$dir/status.json" ]]; then
   failed=1
 else
   "$ctl" replay "$file" >"$dir/summary.txt" 2>&1
-  drops=$(jq -r '.recordingDrops // "0"' "$dir/status.json")
+  drops=$(jq -r '.recording_drops // "0"' "$dir/status.json")
   for side in master slave; do
-    jq -r --arg s "$side" '.[$s] | "\($s): overruns \(.loop.overruns // 0) (last minute \(.overrunsLastMinute // 0)), wake-up p50/p99/p99.9/max \((.loop.wakeupP50Ns // "0" | tonumber) / 1000) / \((.loop.wakeupP99Ns // "0" | tonumber) / 1000) / \((.loop.wakeupP999Ns // "0" | tonumber) / 1000) / \((.loop.wakeupMaxNs // "0" | tonumber) / 1000) us, loss \(.link.lossFraction // 0), round trip p99 \((.link.roundTripP99Ns // "0" | tonumber) / 1e6) ms, mode \(.mode)"' \
+    jq -r --arg s "$side" '.[$s] | "\($s): overruns \(.loop.overruns // 0) (last minute \(.overruns_last_minute // 0)), wake-up p50/p99/p99.9/max \((.loop.wakeup_p50_ns // "0" | tonumber) / 1000) / \((.loop.wakeup_p99_ns // "0" | tonumber) / 1000) / \((.loop.wakeup_p999_ns // "0" | tonumber) / 1000) / \((.loop.wakeup_max_ns // "0" | tonumber) / 1000) us, loss \(.link.loss_fraction // 0), round trip p99 \((.link.round_trip_p99_ns // "0" | tonumber) / 1e6) ms, mode \(.mode)"' \
       "$dir/status.json" | tee -a "$dir/report.txt"
   done
   missing=$(grep -Eo '[0-9]+ missing' "$dir/summary.txt" | awk '{s += $1} END {print s + 0}')

@@ -57,7 +57,7 @@ done
 
 dir=build-fuzz
 CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DTELEOP_SANITIZE=ON -DTELEOP_FUZZ=ON -DTELEOP_BUILD_TESTS=OFF -DTELEOP_BUILD_BENCH=OFF >/dev/null
+  -DTELEOP_WERROR=ON -DTELEOP_SANITIZE=ON -DTELEOP_FUZZ=ON -DTELEOP_BUILD_TESTS=OFF -DTELEOP_BUILD_BENCH=OFF >/dev/null
 build_targets=()
 for t in "${targets[@]}"; do build_targets+=("fuzz_$t"); done
 [ "$seeds" = 1 ] && build_targets+=(fuzz_make_seeds)

@@ -6,7 +6,7 @@ packages=(
   libeigen3-dev libprotobuf-dev protobuf-compiler libzmq3-dev cppzmq-dev libusb-1.0-0-dev
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libncurses-dev tmux jq
-  libsystemd-dev systemd dpkg-dev iproute2 python3
+  libsystemd-dev systemd dpkg-dev iproute2 python3 help2man
 )
 missing=()
 for p in "${packages[@]}"; do

@@ -2,6 +2,8 @@
 # The README's second command: build (installing dependencies if needed) and run every test.
 #   scripts/test.sh            normal build in build/
 #   scripts/test.sh --sanitize ASan+UBSan build with clang in build-asan/
+# TELEOP_BUILD_TYPE=Release|Debug|RelWithDebInfo (default) picks the normal build's type; CI
+# runs the normal suite as Release (GCC's -O3 warnings, e.g. -Wrestrict, stay errors there).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
@@ -10,6 +12,6 @@ if [ "${1:-}" = "--sanitize" ]; then
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   ctest --test-dir build-asan --output-on-failure --parallel "$(nproc)"
 else
-  ./scripts/build.sh build
+  ./scripts/build.sh build -DCMAKE_BUILD_TYPE="${TELEOP_BUILD_TYPE:-RelWithDebInfo}"
   ctest --test-dir build --output-on-failure --parallel "$(nproc)"
 fi

@@ -11,6 +11,8 @@
 #include "common/config/config_loader.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/node_loader.hpp"
+#include "common/core/command_line.hpp"
+#include "common/core/version.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/device/usb_device.hpp"
 #include "common/runtime/node_app.hpp"
@@ -24,7 +26,12 @@ void usage(std::ostream& os, const char* name) {
   os << "usage: " << name << " CONFIG [--set PATH=VALUE]...\n\n"
      << "Runs this side of the teleoperator described by CONFIG (a SystemConfig in protobuf text\n"
         "format): its device, its 1 kHz loop, its link to the peer and its command and telemetry\n"
-        "endpoints. Stops on SIGINT/SIGTERM or a shutdown command.\n";
+        "endpoints. Stops on SIGINT/SIGTERM or a shutdown command.\n\n"
+        "options:\n"
+        "  --set PATH=VALUE  override one field of CONFIG (repeatable, each path once)\n"
+        "  --version         print the version and exit\n"
+        "  -h, --help        this text\n\n"
+        "An option's value may also follow an '=' (--set=PATH=VALUE).\n";
 }
 
 // Builds the device the configuration names; configure() and activate() errors name it.
@@ -80,22 +87,30 @@ int run_node_main(transport::Role role, int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
   std::string config_path;
   std::vector<std::string> overrides;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--help" || args[i] == "-h") {
-      usage(std::cout, name);
-      return 0;
+  try {
+    cli::ArgCursor cur(args);
+    while (cur.next()) {
+      const std::string& a = cur.arg();
+      if (a == "--help" || a == "-h") {
+        usage(std::cout, name);
+        return 0;
+      }
+      if (a == "--version") {
+        std::cout << name << " " << kVersion << "\n";
+        return 0;
+      }
+      if (a == "--set") {
+        overrides.push_back(cur.value("--set"));
+      } else if (config_path.empty() && a.rfind("-", 0) != 0) {
+        config_path = a;
+      } else {
+        throw cli::UsageError("unexpected argument '" + a + "'");
+      }
     }
-    if (args[i] == "--set" && i + 1 < args.size()) {
-      overrides.push_back(args[++i]);
-    } else if (args[i].rfind("--set=", 0) == 0) {
-      overrides.push_back(args[i].substr(6));
-    } else if (config_path.empty() && args[i].rfind("--", 0) != 0) {
-      config_path = args[i];
-    } else {
-      std::cerr << name << ": unexpected argument '" << args[i] << "'\n";
-      usage(std::cerr, name);
-      return 2;
-    }
+  } catch (const cli::UsageError& e) {
+    std::cerr << name << ": " << e.what() << "\n";
+    usage(std::cerr, name);
+    return 2;
   }
   if (config_path.empty()) {
     usage(std::cerr, name);

@@ -166,7 +166,7 @@ void set_wall_time(SimulationSummary& sum, Clock::time_point wall0, Clock::time_
   sum.real_time_factor = sum.wall_time_s > 0.0 ? sum.duration_s / sum.wall_time_s : 0.0;
 }
 
-SimulationResult simulate_bilateral(const SceneSetup& s) {
+SimulationResult simulate_bilateral(const SceneSetup& s, const Progress& progress) {
   const double rate = s.teleop.sample_rate_hz;
   const double t_s = 1.0 / rate;
   const auto period = period_of(rate);
@@ -204,6 +204,7 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
   BilateralMetrics metrics(s.teleop, steps);
   const auto wall0 = Clock::now();
   for (long k = 0; k < steps; ++k) {
+    if (progress && k % 1000 == 0) progress(static_cast<double>(k) / static_cast<double>(steps));
     device::Sample ms{};
     device::Sample ss{};
     (void)master.read(ms);
@@ -229,7 +230,7 @@ SimulationResult simulate_bilateral(const SceneSetup& s) {
   return out;
 }
 
-SimulationResult simulate_force_device(const SceneSetup& s) {
+SimulationResult simulate_force_device(const SceneSetup& s, const Progress& progress) {
   const ForceDeviceSetup& f = *s.force_device;
   const double t_s = f.controller.period_s;
   const auto period = std::chrono::nanoseconds(static_cast<long long>(std::llround(t_s * 1e9)));
@@ -256,6 +257,7 @@ SimulationResult simulate_force_device(const SceneSetup& s) {
   long contact_steps = 0;
   const auto wall0 = Clock::now();
   for (long k = 0; k < steps; ++k) {
+    if (progress && k % 1000 == 0) progress(static_cast<double>(k) / static_cast<double>(steps));
     device::Sample smp{};
     (void)dev.read(smp);
     const control::ForceLoopCommand c = renderer.step(smp.position_m, smp.force_N);
@@ -338,9 +340,12 @@ Equilibrium static_equilibrium(const TeleopParams& p, double push_N) {
       "fixture or coupling spring)");
 }
 
-SimulationResult simulate(const SceneSetup& setup) {
+SimulationResult simulate(const SceneSetup& setup, const Progress& progress) {
   if (!(setup.duration_s > 0.0)) throw std::invalid_argument("scene.duration_s must be > 0");
-  return setup.force_device ? simulate_force_device(setup) : simulate_bilateral(setup);
+  SimulationResult r = setup.force_device ? simulate_force_device(setup, progress)
+                                          : simulate_bilateral(setup, progress);
+  if (progress) progress(1.0);
+  return r;
 }
 
 }  // namespace teleop::scene

@@ -2,6 +2,7 @@
 // devices, stepped one control period at a time, far faster than real time.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -41,9 +42,13 @@ struct SimulationResult {
   std::vector<double> rows{};          // row-major, columns.size() values per row
 };
 
+// How far a run is, in [0, 1]: called every 1000 steps and at the end (teleopctl's progress
+// line on a terminal); empty: not called.
+using Progress = std::function<void(double fraction)>;
+
 // Runs the scene. Throws std::invalid_argument when the scene cannot be set up (a device that
 // does not configure, no equilibrium for an equilibrium start), naming the reason.
-[[nodiscard]] SimulationResult simulate(const SceneSetup& setup);
+[[nodiscard]] SimulationResult simulate(const SceneSetup& setup, const Progress& progress = {});
 
 // The static equilibrium of the linear loop under a constant push (fixtures engaged where the
 // equilibrium lies inside them). Throws when there is none (no restoring force).

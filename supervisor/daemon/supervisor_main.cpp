@@ -11,6 +11,8 @@
 #include <optional>
 #include <thread>
 
+#include "common/core/command_line.hpp"
+#include "common/core/version.hpp"
 #include "common/record/session_recorder.hpp"
 #include "common/runtime/service_notify.hpp"
 #include "common/stability/analyzer.hpp"
@@ -23,7 +25,15 @@ void usage(std::ostream& os) {
   os << "usage: teleop-supervisor CONFIG [--set PATH=VALUE]... [--record-dir DIR] [--no-record]\n\n"
         "Watches the teleoperator CONFIG describes: analyses it with the measured round trip,\n"
         "publishes stability reports and alarms, guards parameter changes, escalates when the\n"
-        "live system misbehaves, and records the session (MCAP) in DIR. Stops on SIGINT/SIGTERM.\n";
+        "live system misbehaves, and records the session (MCAP) in DIR. Stops on "
+        "SIGINT/SIGTERM.\n\n"
+        "options:\n"
+        "  --set PATH=VALUE  override one field of CONFIG (repeatable, each path once)\n"
+        "  --record-dir DIR  where the session file and the log go\n"
+        "  --no-record       supervise without recording\n"
+        "  --version         print the version and exit\n"
+        "  -h, --help        this text\n\n"
+        "An option's value may also follow an '=' (--record-dir=DIR).\n";
 }
 
 // The session file and the log file in `dir`. A directory that cannot be created or written
@@ -47,41 +57,65 @@ void start_recording(const std::filesystem::path& dir, SupervisorOptions& option
   }
 }
 
+// The supervisor's command line.
+struct SupervisorArgs {
+  std::string config_path{};
+  std::vector<std::string> overrides{};
+  std::optional<std::string> record_dir{};
+  bool record{true};
+};
+
+// The command line read (nullopt), or the exit code when it was --help, --version or wrong.
+std::optional<int> parse_args(const std::vector<std::string>& args, SupervisorArgs& out) {
+  try {
+    cli::ArgCursor cur(args);
+    while (cur.next()) {
+      const std::string& a = cur.arg();
+      if (a == "--help" || a == "-h") {
+        usage(std::cout);
+        return 0;
+      }
+      if (a == "--version") {
+        std::cout << "teleop-supervisor " << kVersion << "\n";
+        return 0;
+      }
+      if (a == "--set") {
+        out.overrides.push_back(cur.value("--set"));
+      } else if (a == "--record-dir") {
+        out.record_dir = cur.value("--record-dir");
+      } else if (a == "--no-record") {
+        out.record = false;
+      } else if (out.config_path.empty() && a.rfind("-", 0) != 0) {
+        out.config_path = a;
+      } else {
+        throw cli::UsageError("unexpected argument '" + a + "'");
+      }
+    }
+  } catch (const cli::UsageError& e) {
+    std::cerr << "teleop-supervisor: " << e.what() << "\n";
+    usage(std::cerr);
+    return 2;
+  }
+  if (out.config_path.empty()) {
+    usage(std::cerr);
+    return 2;
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 int run_supervisor_main(int argc, char** argv) {
   // The analyses share the machine with the nodes' loops: one core (stability/analyzer.hpp).
   stability::set_analysis_threads(1);
-  std::vector<std::string> args(argv + 1, argv + argc);
-  std::string config_path;
-  std::vector<std::string> overrides;
-  std::optional<std::string> record_dir;
-  bool record = true;
-  for (std::size_t i = 0; i < args.size(); ++i) {
-    if (args[i] == "--help" || args[i] == "-h") {
-      usage(std::cout);
-      return 0;
-    }
-    if (args[i] == "--set" && i + 1 < args.size()) {
-      overrides.push_back(args[++i]);
-    } else if (args[i].rfind("--set=", 0) == 0) {
-      overrides.push_back(args[i].substr(6));
-    } else if (args[i] == "--record-dir" && i + 1 < args.size()) {
-      record_dir = args[++i];
-    } else if (args[i] == "--no-record") {
-      record = false;
-    } else if (config_path.empty() && args[i].rfind("--", 0) != 0) {
-      config_path = args[i];
-    } else {
-      std::cerr << "teleop-supervisor: unexpected argument '" << args[i] << "'\n";
-      usage(std::cerr);
-      return 2;
-    }
+  SupervisorArgs parsed;
+  if (const auto rc = parse_args(std::vector<std::string>(argv + 1, argv + argc), parsed)) {
+    return *rc;
   }
-  if (config_path.empty()) {
-    usage(std::cerr);
-    return 2;
-  }
+  const std::string& config_path = parsed.config_path;
+  const std::vector<std::string>& overrides = parsed.overrides;
+  const std::optional<std::string>& record_dir = parsed.record_dir;
+  const bool record = parsed.record;
   // A file-size limit (RLIMIT_FSIZE) then fails the recorder's write with EFBIG, as a full disk
   // fails it with ENOSPC, instead of killing the supervisor.
   signal(SIGXFSZ, SIG_IGN);

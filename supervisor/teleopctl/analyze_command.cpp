@@ -11,6 +11,7 @@
 #include "common/stability/analyzer.hpp"
 #include "common/stability/force_loop.hpp"
 #include "supervisor/teleopctl/json_output.hpp"
+#include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 
 namespace teleop::ctl {
@@ -102,7 +103,8 @@ int run_force_loop(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std
   return kExitStable;
 }
 
-int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out) {
+int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out,
+               std::ostream& err) {
   const Side side = *o.max_stiffness_side;
   const char* side_name = side == Side::kMaster ? "master" : "slave";
   const TeleopParams base = config::to_teleop_params(cfg);
@@ -117,6 +119,10 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
   json limits = json::array();
   std::vector<Series> series;
   bool any_invalid = false;  // a point whose model is not finite: the run fails
+  // A big sweep takes seconds: its progress on a terminal.
+  ProgressLine progress(err, "analyze --max-stiffness", !o.json && stderr_is_terminal());
+  const std::size_t points = sweep_values.size() * rates.size();
+  std::size_t done = 0;
   for (const auto& sv : sweep_values) {
     Series line;
     line.label = sv ? fmt::format("{} = {:g}", o.sweep->path, *sv) : std::string(side_name);
@@ -131,6 +137,7 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
       limits.push_back(j);
       const double x = (o.sweep && rates.size() == 1) ? *sv : rate;
       line.points.emplace_back(x, l.max_stable_stiffness_N_per_m.value_or(std::nan("")));
+      progress.update(++done, points);
     }
     series.push_back(std::move(line));
   }
@@ -312,7 +319,7 @@ int run_analyze(const AnalyzeOptions& o, std::ostream& out, std::ostream& err) {
   return run_guarded("analyze", err, [&] {
     const config::LoadedConfig cfg = config::load_config_file(o.config_path, o.overrides);
     if (o.force_loop) return run_force_loop(cfg, o, out);
-    if (o.max_stiffness_side) return run_limits(cfg, o, out);
+    if (o.max_stiffness_side) return run_limits(cfg, o, out, err);
     return run_single(cfg, o, out);
   });
 }

@@ -36,20 +36,9 @@ void take_only_positional(const std::string& arg, std::string& only,
   only = arg;
 }
 
-const std::string& ArgCursor::value(const char* flag) {
-  if (i_ + 1 >= args_.size()) throw UsageError(fmt::format("{} needs a value", flag));
-  return args_[++i_];
-}
-
 bool take_set_option(ArgCursor& cur, std::vector<std::string>& overrides) {
-  const std::string& a = cur.arg();
-  if (a == "--set") {
-    overrides.push_back(cur.value("--set"));
-  } else if (a.rfind("--set=", 0) == 0) {
-    overrides.push_back(a.substr(6));
-  } else {
-    return false;
-  }
+  if (cur.arg() != "--set") return false;
+  overrides.push_back(cur.value("--set"));
   return true;
 }
 

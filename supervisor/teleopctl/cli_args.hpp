@@ -8,14 +8,14 @@
 #include <vector>
 
 #include "common/config/config_loader.hpp"
+#include "common/core/command_line.hpp"
 
 namespace teleop::ctl {
 
 // Bad command line: exit code 2 and the usage text.
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using cli::UsageError;
+// Walks the arguments; `--name=value` reads as `--name value` (common/core/command_line.hpp).
+using cli::ArgCursor;
 
 inline constexpr int kExitOk = 0;
 inline constexpr int kExitError = 1;  // bad configuration or I/O
@@ -33,19 +33,6 @@ inline constexpr int kExitUsage = 2;
 // UsageErrors, the first positional argument goes to `only`.
 void take_only_positional(const std::string& arg, std::string& only,
                           std::string_view option_prefix = "--");
-
-// Walks the arguments; value() takes the one after the current flag.
-class ArgCursor {
- public:
-  explicit ArgCursor(const std::vector<std::string>& args) : args_(args) {}
-  [[nodiscard]] bool next() { return ++i_ < args_.size(); }
-  [[nodiscard]] const std::string& arg() const { return args_[i_]; }
-  [[nodiscard]] const std::string& value(const char* flag);
-
- private:
-  const std::vector<std::string>& args_;
-  std::size_t i_{static_cast<std::size_t>(-1)};
-};
 
 // `--set PATH=VALUE` or `--set=PATH=VALUE`, the current argument of `cur`: its override
 // appended to `overrides` (true); false when the argument is something else.

@@ -1,6 +1,10 @@
 #include "supervisor/teleopctl/json_output.hpp"
 
+#include <google/protobuf/util/json_util.h>
+
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
 namespace teleop::ctl {
 
@@ -13,6 +17,17 @@ json complex_json(std::complex<double> c) { return json::array({c.real(), c.imag
 json optional_number(const std::optional<double>& v) { return v ? json(*v) : json(nullptr); }
 
 }  // namespace
+
+json proto_json(const google::protobuf::Message& message) {
+  google::protobuf::util::JsonPrintOptions o;
+  o.always_print_primitive_fields = true;
+  o.preserve_proto_field_names = true;
+  std::string text;
+  if (!google::protobuf::util::MessageToJsonString(message, &text, o).ok()) {
+    throw std::runtime_error("a " + message.GetTypeName() + " has no JSON form");
+  }
+  return json::parse(text);
+}
 
 json human_json(const std::optional<stability::HumanSample>& human) {
   if (!human) return nullptr;

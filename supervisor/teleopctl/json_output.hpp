@@ -1,5 +1,7 @@
-// The JSON documents `teleopctl analyze` prints (fields documented in docs/analyze.md).
+// The JSON documents teleopctl prints (analyze's fields documented in docs/analyze.md).
 #pragma once
+
+#include <google/protobuf/message.h>
 
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -10,6 +12,10 @@
 #include "common/stability/stiffness_search.hpp"
 
 namespace teleop::ctl {
+
+// A protobuf message as teleopctl prints it under --json: its proto field names (snake_case,
+// units as in the .proto: `stiffness_N_per_m`), every field present, one line.
+[[nodiscard]] nlohmann::json proto_json(const google::protobuf::Message& message);
 
 [[nodiscard]] nlohmann::json human_json(const std::optional<stability::HumanSample>& human);
 [[nodiscard]] nlohmann::json mode_json(const stability::Mode& mode);

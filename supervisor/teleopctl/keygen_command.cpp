@@ -1,5 +1,6 @@
 #include "supervisor/teleopctl/keygen_command.hpp"
 
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <ostream>
 
@@ -9,7 +10,7 @@
 namespace teleop::ctl {
 
 std::string keygen_usage() {
-  return "usage: teleopctl keygen NAME [--force]\n\n"
+  return "usage: teleopctl keygen NAME [--force] [--json]\n\n"
          "Writes a CURVE key pair for one node:\n"
          "  NAME.key  public and secret key, mode 0600; point security.secret_key_file at it\n"
          "  NAME.pub  the public key: give it to the peer (its allowed client keys, or the\n"
@@ -17,12 +18,14 @@ std::string keygen_usage() {
          "and prints the public key.\n\n"
          "options:\n"
          "  --force   replace existing NAME.key and NAME.pub (the old key stops working)\n"
+         "  --json    print {secret_key_file, public_key_file, public_key} as JSON\n"
          "  --help    this text\n";
 }
 
 int run_keygen(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::optional<std::string> name;
   bool force = false;
+  bool json = false;
   try {
     ArgCursor cursor(args);
     while (cursor.next()) {
@@ -33,6 +36,8 @@ int run_keygen(const std::vector<std::string>& args, std::ostream& out, std::ost
       }
       if (arg == "--force") {
         force = true;
+      } else if (arg == "--json") {
+        json = true;
       } else if (!arg.empty() && arg.front() == '-') {
         throw UsageError("unknown option '" + arg + "'");
       } else if (name) {
@@ -49,6 +54,14 @@ int run_keygen(const std::vector<std::string>& args, std::ostream& out, std::ost
   return run_guarded("keygen", err, [&] {
     const transport::CurveKeyPair keys = transport::generate_curve_keypair();
     const transport::KeyFilePaths paths = transport::write_key_files(*name, keys, force);
+    if (json) {
+      out << nlohmann::json{{"secret_key_file", paths.secret_file.string()},
+                            {"public_key_file", paths.public_file.string()},
+                            {"public_key", keys.public_z85}}
+                 .dump()
+          << "\n";
+      return kExitOk;
+    }
     out << "wrote " << paths.secret_file.string() << " (secret, mode 0600) and "
         << paths.public_file.string() << "\n"
         << "public-key = " << keys.public_z85 << "\n";

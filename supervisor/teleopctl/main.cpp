@@ -4,6 +4,7 @@
 #include <string>
 #include <vector>
 
+#include "common/core/version.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
 #include "supervisor/teleopctl/console_command.hpp"
 #include "supervisor/teleopctl/identify_command.hpp"
@@ -32,7 +33,12 @@ void usage(std::ostream& os) {
         "  status     the supervisor's status, --json for scripts ('teleopctl status --help')\n"
         "  console    the operator's full-screen console, live or on a replay ('--help')\n"
         "  relay      a fault-injecting relay for one direction of a node link ('--help')\n"
-        "  help       this text\n";
+        "  help       this text\n\n"
+        "options:\n"
+        "  --version  print the version and exit\n"
+        "  -h, --help this text\n\n"
+        "Every option that takes a value also takes it after an '=' (--timeout-ms=500); --json\n"
+        "makes a command's output one JSON document with snake_case keys.\n";
 }
 
 }  // namespace
@@ -42,6 +48,10 @@ int main(int argc, char** argv) {
   if (args.empty() || args[0] == "help" || args[0] == "--help" || args[0] == "-h") {
     usage(args.empty() ? std::cerr : std::cout);
     return args.empty() ? teleop::ctl::kExitUsage : 0;
+  }
+  if (args[0] == "--version" || args[0] == "version") {
+    std::cout << "teleopctl " << teleop::kVersion << "\n";
+    return 0;
   }
   if (args[0] == "analyze") {
     const std::vector<std::string> rest(args.begin() + 1, args.end());

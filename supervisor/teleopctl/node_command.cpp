@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <sstream>
 #include <thread>
 #include <zmq.hpp>
 
@@ -21,6 +22,7 @@
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/json_output.hpp"
 #include "supervisor/teleopctl/launch_isolation.hpp"
 #include "supervisor/teleopctl/local_launch.hpp"
 
@@ -155,6 +157,7 @@ struct LaunchArgs {
   bool record_dir_given = false;
   int instance = 0;
   bool plaintext = false;
+  bool json = false;  // one JSON document per line (an "event" each) instead of the text
 };
 
 LaunchArgs parse_launch_args(const std::vector<std::string>& args) {
@@ -172,6 +175,8 @@ LaunchArgs parse_launch_args(const std::vector<std::string>& args) {
       l.supervise = false;
     } else if (a == "--plaintext") {
       l.plaintext = true;
+    } else if (a == "--json") {
+      l.json = true;
     } else if (a == "--record-dir") {
       l.record_dir = cur.value("--record-dir");
       l.record_dir_given = true;
@@ -338,6 +343,20 @@ void print_launched(std::ostream& out, int instance, const LaunchPlan& plan,
   out << std::endl;
 }
 
+nlohmann::json launched_json(int instance, const LaunchPlan& plan, const LaunchedPids& pids) {
+  nlohmann::json j{{"event", "launched"},
+                   {"instance", instance},
+                   {"master", {{"pid", pids.master}, {"command", plan.master.endpoints.command}}},
+                   {"slave", {{"pid", pids.slave}, {"command", plan.slave.endpoints.command}}},
+                   {"supervisor", nullptr}};
+  if (pids.supervisor > 0) {
+    j["supervisor"] = {{"pid", pids.supervisor},
+                       {"requests", supervisor_request_endpoint(plan.loaded)},
+                       {"reports", supervisor_report_endpoint(plan.loaded)}};
+  }
+  return j;
+}
+
 zmq::socket_t subscribe_telemetry(zmq::context_t& ctx, const std::string& endpoint,
                                   const NodeClientKeys& keys) {
   zmq::socket_t s(ctx, zmq::socket_type::sub);
@@ -428,9 +447,27 @@ std::string launch_state_line(const v1::Telemetry& mt, const v1::Telemetry& st) 
       st.loop().overruns());
 }
 
+// The same as launch_state_line, as one JSON document.
+nlohmann::json launch_state_json(const v1::Telemetry& mt, const v1::Telemetry& st) {
+  auto side = [](const v1::Telemetry& t) {
+    const double x_m = t.cycles_size() > 0 ? t.cycles(t.cycles_size() - 1).position_m() : 0.0;
+    return nlohmann::json{{"mode", mode_name(t.mode())},
+                          {"position_m", x_m},
+                          {"wakeup_p99_s", static_cast<double>(t.loop().wakeup_p99_ns()) * 1e-9},
+                          {"overruns", t.loop().overruns()}};
+  };
+  const auto& ml = mt.link();
+  return {{"event", "state"},
+          {"master", side(mt)},
+          {"slave", side(st)},
+          {"round_trip_s", static_cast<double>(ml.round_trip_ns()) * 1e-9},
+          {"round_trip_samples", ml.round_trip_samples()},
+          {"loss_fraction", ml.loss_fraction()}};
+}
+
 // Both nodes' state once a second until Ctrl-C, `duration_s` (if > 0) or a node exiting.
 void print_state_until_stopped(LaunchTelemetry& tel, const LaunchedPids& pids, double duration_s,
-                               std::ostream& out) {
+                               bool json, std::ostream& out) {
   const auto start = std::chrono::steady_clock::now();
   auto next_print = start;
   while (!g_interrupted && !node_exited(pids)) {
@@ -439,7 +476,11 @@ void print_state_until_stopped(LaunchTelemetry& tel, const LaunchedPids& pids, d
     if (duration_s > 0.0 && now - start >= std::chrono::duration<double>(duration_s)) break;
     if (now >= next_print && tel.both()) {
       next_print += 1s;
-      out << launch_state_line(tel.master(), tel.slave()) << std::endl;
+      if (json) {
+        out << launch_state_json(tel.master(), tel.slave()).dump() << std::endl;
+      } else {
+        out << launch_state_line(tel.master(), tel.slave()) << std::endl;
+      }
     }
     std::this_thread::sleep_for(20ms);
   }
@@ -471,7 +512,7 @@ std::optional<v1::NodeCommandReply> send_node_command(const std::string& endpoin
 
 std::string node_usage() {
   return "usage: teleopctl node HOST:PORT COMMAND [--key FILE] [--server-key KEY|FILE]\n"
-         "                     [--timeout-ms N]\n\n"
+         "                     [--timeout-ms N] [--json]\n\n"
          "Sends one command straight to one node's command endpoint and prints the mode the node\n"
          "reached. COMMAND: arm, engage, disengage, clutch, unclutch, clear, estop, status,\n"
          "shutdown. Off loopback the node requires CURVE: --key is this client's key file\n"
@@ -480,17 +521,21 @@ std::string node_usage() {
          "the keys of a live `teleopctl launch` whose node is at HOST:PORT, if any.\n"
          "Exit: 0 taken (the node reached the mode the command asks for), 1 error, 2 usage,\n"
          "3 refused by the node (its mode and reason printed: e.g. engage on a SAFE node),\n"
-         "4 no reply.\n";
+         "4 no reply. --json prints {endpoint, taken, refusal, reply: the node's\n"
+         "teleop.v1.NodeCommandReply}.\n";
 }
 
 int run_node_command(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::string> positional;
   NodeClientKeys keys;
   int timeout_ms = 2000;
+  bool json = false;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
-    if (a == "--key") {
+    if (a == "--json") {
+      json = true;
+    } else if (a == "--key") {
       keys.secret_key_file = cur.value("--key");
     } else if (a == "--server-key") {
       keys.server_key = cur.value("--server-key");
@@ -514,21 +559,31 @@ int run_node_command(const std::vector<std::string>& args, std::ostream& out, st
           << " ms (is the node running? are the keys right?)\n";
       return kExitNoReply;
     }
+    // The loop took the command, but the state machine ignores what the mode does not allow.
+    const std::string refusal = reply->ok() ? command_refusal(it->second, *reply) : "";
+    const bool taken = reply->ok() && refusal.empty();
+    if (json) {
+      out << nlohmann::json{{"endpoint", endpoint},
+                            {"taken", taken},
+                            {"refusal", refusal},
+                            {"reply", proto_json(*reply)}}
+                 .dump()
+          << "\n";
+      return taken ? kExitOk : kExitRefused;
+    }
     out << role_name(reply->role()) << " " << endpoint << ": " << mode_name(reply->mode());
     if (!reply->mode_reason().empty()) out << " (" << reply->mode_reason() << ")";
     if (!reply->message().empty()) out << ": " << reply->message();
-    // The loop took the command, but the state machine ignores what the mode does not allow.
-    const std::string refusal = reply->ok() ? command_refusal(it->second, *reply) : "";
     if (!refusal.empty()) out << ": refused: " << refusal;
     out << "\n";
-    return reply->ok() && refusal.empty() ? kExitOk : kExitRefused;
+    return taken ? kExitOk : kExitRefused;
   });
 }
 
 std::string launch_usage() {
   return "usage: teleopctl launch CONFIG [--set PATH=VALUE]... [--duration S] [--no-engage]\n"
          "                        [--record-dir DIR] [--no-supervisor] [--instance N] "
-         "[--plaintext]\n\n"
+         "[--plaintext] [--json]\n\n"
          "Starts teleop-master and teleop-slave on loopback with simulated devices (the scene's\n"
          "human and environment, when CONFIG has a scene) and teleop-supervisor (recording the\n"
          "session in DIR, default ./sessions), arms and engages both nodes, and prints their\n"
@@ -548,13 +603,22 @@ std::string launch_usage() {
          "0700), where teleopctl console, status, set, estop and node find them without flags,\n"
          "and are removed when the launch ends. --plaintext keeps the loopback links plaintext\n"
          "(no keys generated; the nodes then refuse every retune unless CONFIG sets\n"
-         "security.allow_unauthenticated_retune).\n";
+         "security.allow_unauthenticated_retune).\n"
+         "--json prints one JSON document per line instead of the text, each with an \"event\":\n"
+         "launched (pids, endpoints), linked, engaged or not_engaged, state (once a second:\n"
+         "both modes and positions, round trip, loss), stopped (clean).\n";
 }
 
 int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   LaunchArgs a = parse_launch_args(args);
+  // Under --json the text goes nowhere and each step is one JSON line on `out`.
+  std::ostringstream no_text;
+  std::ostream& text = a.json ? no_text : out;
+  auto event = [&](nlohmann::json j) {
+    if (a.json) out << j.dump() << std::endl;
+  };
   return run_guarded("launch", err, [&]() -> int {
-    const LaunchPlan plan = plan_launch(a, out);
+    const LaunchPlan plan = plan_launch(a, text);
     install_interrupt_handlers();
     const LaunchedPids pids = spawn_processes(a);
     // The processes answering must be the ones just started (finding 8 of issue 14): else
@@ -567,7 +631,8 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
       err << "teleopctl launch: refused: " << why << "\n";
       return kExitError;
     }
-    print_launched(out, a.instance, plan, pids);
+    print_launched(text, a.instance, plan, pids);
+    event(launched_json(a.instance, plan, pids));
     LaunchTelemetry tel(plan, own[0].session_id, own[1].session_id);
     const bool linked = tel.wait_until(
         [&] { return tel.master().link().accepted() > 0 && tel.slave().link().accepted() > 0; },
@@ -582,20 +647,26 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
           << "\n";
       return kExitError;
     }
-    out << "master and slave linked: master session "
-        << fmt::format("{:016x}", tel.master().session_id()) << ", slave session "
-        << fmt::format("{:016x}", tel.slave().session_id()) << "\n";
+    const std::string master_session = fmt::format("{:016x}", tel.master().session_id());
+    const std::string slave_session = fmt::format("{:016x}", tel.slave().session_id());
+    text << "master and slave linked: master session " << master_session << ", slave session "
+         << slave_session << "\n";
+    event({{"event", "linked"},
+           {"master_session", master_session},
+           {"slave_session", slave_session}});
     if (a.engage) {
       arm_and_engage(plan, pids, err);
       const bool engaged = tel.wait_until(
           [&] { return tel.master().mode() == v1::ENGAGED && tel.slave().mode() == v1::ENGAGED; },
           10s);
-      out << (engaged ? "engaged" : "not engaged within 10 s") << "\n";
+      text << (engaged ? "engaged" : "not engaged within 10 s") << "\n";
+      event({{"event", engaged ? "engaged" : "not_engaged"}});
     }
-    out << "Ctrl-C stops both nodes.\n";
-    print_state_until_stopped(tel, pids, a.duration_s, out);
+    text << "Ctrl-C stops both nodes.\n";
+    print_state_until_stopped(tel, pids, a.duration_s, a.json, out);
     const bool clean = stop_all(pids);
-    out << (clean ? "both nodes stopped cleanly" : "a node did not stop cleanly") << "\n";
+    text << (clean ? "both nodes stopped cleanly" : "a node did not stop cleanly") << "\n";
+    event({{"event", "stopped"}, {"clean", clean}});
     return clean ? kExitOk : kExitError;
   });
 }

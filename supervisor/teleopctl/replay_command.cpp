@@ -98,8 +98,6 @@ void set_action(ReplayArgs& a, Action action, bool& chosen, const std::string& f
       set_action(a, Action::kResimulate, chosen, arg);
     } else if (arg == "--set") {
       a.overrides.push_back(c.value("--set"));
-    } else if (arg.rfind("--set=", 0) == 0) {
-      a.overrides.push_back(arg.substr(6));
     } else if (arg == "--control") {
       a.control = c.value("--control");
       live_only = true;

@@ -8,6 +8,7 @@
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/json_output.hpp"
 #include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
 
@@ -94,19 +95,23 @@ v1::ParameterChangeRequest make_change_request(
 
 std::string set_usage() {
   return "usage: teleopctl set PATH=VALUE... [--dry-run] [--supervisor HOST:PORT] [--key FILE]\n"
-         "                    [--server-key KEY|FILE] [--timeout-ms N]\n\n"
+         "                    [--server-key KEY|FILE] [--timeout-ms N] [--json]\n\n"
          "Asks the supervisor to change the running teleoperator. It analyses the change first\n"
          "(with the measured round trip) and applies it only when the predicted minimum damping\n"
          "ratio meets the required one; both nodes then switch at an agreed master sequence,\n"
          "ramped. PATH: gains.kpm|kps|kdm|kds|kvm|kvs|kfm, master.fixture.stiffness_N_per_m,\n"
          "slave.fixture.stiffness_N_per_m. --dry-run only predicts. Supervisor default\n"
          "127.0.0.1:5567 (without --key and --server-key: the keys of a live `teleopctl launch`\n"
-         "there, if any). Exit: 0 accepted, 1 error, 2 usage, 3 refused, 4 no reply.\n";
+         "there, if any). --json prints the supervisor's teleop.v1.ParameterChangeReply "
+         "(accepted,\n"
+         "reason, change_id, apply_at_master_sequence, prediction) as JSON. Exit: 0 accepted,\n"
+         "1 error, 2 usage, 3 refused, 4 no reply.\n";
 }
 
 int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::vector<std::pair<std::string, double>> sets;
   bool dry_run = false;
+  bool json = false;
   SupervisorClientFlags sup;
   sup.timeout_ms = 5000;
   ArgCursor cur(args);
@@ -114,6 +119,8 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     const std::string& a = cur.arg();
     if (a == "--dry-run") {
       dry_run = true;
+    } else if (a == "--json") {
+      json = true;
     } else if (sup.take(cur)) {
     } else if (a.rfind("--", 0) == 0) {
       throw UsageError("unknown option '" + a + "'");
@@ -156,6 +163,10 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       return reply->refused_read_only() ? kExitRefused : kExitError;
     }
     const v1::ParameterChangeReply& r = reply->change();
+    if (json) {
+      out << proto_json(r).dump() << "\n";
+      return r.accepted() ? kExitOk : kExitRefused;
+    }
     const v1::StabilityReport& p = r.prediction();
     out << r.reason() << "\n";
     out << fmt::format(

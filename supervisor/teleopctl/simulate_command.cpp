@@ -21,6 +21,7 @@
 #include "supervisor/core/report.hpp"
 #include "supervisor/core/stability_guard.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
+#include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
@@ -358,8 +359,6 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
       o.json = true;
     } else if (a == "--set") {
       o.overrides.push_back(value("--set"));
-    } else if (a.rfind("--set=", 0) == 0) {
-      o.overrides.push_back(a.substr(6));
     } else if (a == "--duration") {
       const std::string& v = value("--duration");
       const double d = parse_number(v, "--duration");
@@ -398,7 +397,11 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     if (o.seed) sets.push_back(fmt::format("scene.seed={}", *o.seed));
     const config::LoadedConfig cfg = config::load_config_file(o.scene_path, sets);
     const scene::SceneSetup setup = config::to_scene_setup(cfg);
-    const scene::SimulationResult r = scene::simulate(setup);
+    scene::SimulationResult r;
+    {
+      ProgressLine progress(err, "simulate", !o.json && stderr_is_terminal());
+      r = scene::simulate(setup, [&](double f) { progress.update(f); });
+    }
     const scene::SimulationSummary& s = r.summary;
 
     json j = {{"scene", cfg.source_name},

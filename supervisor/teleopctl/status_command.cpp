@@ -1,13 +1,13 @@
 #include "supervisor/teleopctl/status_command.hpp"
 
 #include <fmt/core.h>
-#include <google/protobuf/util/json_util.h>
 
 #include "common/config/config_loader.hpp"
 #include "common/config/node_loader.hpp"
 #include "common/core/defaults.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/estop_fanout.hpp"
+#include "supervisor/teleopctl/json_output.hpp"
 #include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
 #include "supervisor/teleopctl/set_command.hpp"
@@ -16,7 +16,8 @@ namespace teleop::ctl {
 
 std::string estop_usage() {
   return "usage: teleopctl estop [CONFIG] [--master HOST:PORT] [--slave HOST:PORT] [--key FILE]\n"
-         "                      [--supervisor HOST:PORT | --no-supervisor] [--timeout-ms N]\n\n"
+         "                      [--supervisor HOST:PORT | --no-supervisor] [--timeout-ms N] "
+         "[--json]\n\n"
          "E-stop to both nodes at once, each directly on its command endpoint (from CONFIG, the\n"
          "flags, or the loopback defaults 5562 and 5563), and the mode each confirms; the\n"
          "supervisor (CONFIG's request endpoint, --supervisor, or 127.0.0.1:5567) is told in the\n"
@@ -25,8 +26,98 @@ std::string estop_usage() {
          "security keys, --key is this client's key file (a read-only console key will do for an\n"
          "e-stop); without --key, the keys of a live `teleopctl launch` on these endpoints. Exit\n"
          "0 when both confirm safe, 3 when a node answered otherwise, 4 when a node did not\n"
-         "answer (each named).\n";
+         "answer (each named). --json prints the same as one JSON document (nodes.master,\n"
+         "nodes.slave: outcome, mode, mode_reason, reply_s; supervisor: outcome).\n";
 }
+
+namespace {
+
+// 0 when both nodes confirmed safe, 3 when one answered otherwise, 4 when one did not answer.
+int estop_exit_code(const EstopResult& r) {
+  int rc = kExitOk;
+  for (const EstopOutcome& o : r.nodes) {
+    if (!o.error.empty() || !o.reply) return kExitNoReply;
+    if (!o.safe()) rc = kExitRefused;
+  }
+  return rc;
+}
+
+void print_estop(std::ostream& out, const EstopResult& r,
+                 const std::optional<SupervisorTarget>& sup, int timeout_ms) {
+  // The instant on this host's monotonic clock, the nodes' too: compare with their telemetry.
+  out << fmt::format("e-stop sent at CLOCK_MONOTONIC {}.{:09d} s to both nodes{}\n",
+                     r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL,
+                     sup ? " and the supervisor" : "");
+  for (const EstopOutcome& o : r.nodes) {
+    if (!o.error.empty()) {
+      out << o.name << " " << o.endpoint << ": NOT SENT: " << o.error << "\n";
+    } else if (!o.reply) {
+      out << o.name << " " << o.endpoint << ": NO REPLY within " << timeout_ms << " ms\n";
+    } else {
+      out << o.name << " " << o.endpoint << ": " << v1::NodeMode_Name(o.reply->mode()) << " ("
+          << o.reply->mode_reason() << ")"
+          << (o.via_supervisor
+                  ? std::string(" through the supervisor (no direct reply)")
+                  : fmt::format(" in {:.1f} ms", static_cast<double>(o.reply_ns) * 1e-6))
+          << "\n";
+    }
+  }
+  if (!sup) return;
+  out << "supervisor " << sup->endpoint << ": ";
+  if (!r.supervisor_error.empty()) {
+    out << "not told: " << r.supervisor_error << "\n";
+  } else if (!r.supervisor) {
+    out << "told, no reply while the nodes answered (not waited for)\n";
+  } else if (!r.supervisor->error().empty()) {
+    out << "told, answered: " << r.supervisor->error() << "\n";
+  } else {
+    out << "told, confirmed\n";
+  }
+}
+
+// The same as one JSON document: each node's outcome and the supervisor's.
+nlohmann::json estop_json(const EstopResult& r, const std::optional<SupervisorTarget>& sup,
+                          int timeout_ms) {
+  nlohmann::json nodes = nlohmann::json::object();
+  for (const EstopOutcome& o : r.nodes) {
+    nlohmann::json n{
+        {"endpoint", o.endpoint}, {"safe", o.safe()}, {"via_supervisor", o.via_supervisor}};
+    if (!o.error.empty()) {
+      n["outcome"] = "not_sent";
+      n["error"] = o.error;
+    } else if (!o.reply) {
+      n["outcome"] = "no_reply";
+    } else {
+      n["outcome"] = "replied";
+      n["mode"] = v1::NodeMode_Name(o.reply->mode());
+      n["mode_reason"] = o.reply->mode_reason();
+      n["reply_s"] = static_cast<double>(o.reply_ns) * 1e-9;
+    }
+    nodes[o.name] = std::move(n);
+  }
+  nlohmann::json j{{"sent_monotonic_ns", r.sent_monotonic_ns},
+                   {"timeout_ms", timeout_ms},
+                   {"nodes", std::move(nodes)},
+                   {"supervisor", nullptr}};
+  if (sup) {
+    std::string outcome = "confirmed";
+    if (!r.supervisor_error.empty()) {
+      outcome = "not_told";
+    } else if (!r.supervisor) {
+      outcome = "told_no_reply";
+    } else if (!r.supervisor->error().empty()) {
+      outcome = "answered_error";
+    }
+    j["supervisor"] = {{"endpoint", sup->endpoint},
+                       {"outcome", outcome},
+                       {"error", !r.supervisor_error.empty() ? r.supervisor_error
+                                 : r.supervisor              ? r.supervisor->error()
+                                                             : std::string()}};
+  }
+  return j;
+}
+
+}  // namespace
 
 int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
   std::string config_path;
@@ -39,6 +130,7 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
   bool slave_set = false;
   bool supervisor_set = false;
   bool tell_supervisor = true;
+  bool json = false;
   ArgCursor cur(args);
   while (cur.next()) {
     const std::string& a = cur.arg();
@@ -53,6 +145,8 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
       supervisor_set = true;
     } else if (a == "--no-supervisor") {
       tell_supervisor = false;
+    } else if (a == "--json") {
+      json = true;
     } else if (a == "--key") {
       key = cur.value("--key");
     } else if (a == "--timeout-ms") {
@@ -99,41 +193,12 @@ int run_estop(const std::vector<std::string>& args, std::ostream& out, std::ostr
     // A client key without the supervisor's public key cannot be used with it: plaintext then.
     if (sup && sup->server_key.empty()) sup->key_file.clear();
     const EstopResult r = estop_everywhere(targets, sup, "teleopctl estop", timeout_ms);
-    // The instant on this host's monotonic clock, the nodes' too: compare with their telemetry.
-    out << fmt::format("e-stop sent at CLOCK_MONOTONIC {}.{:09d} s to both nodes{}\n",
-                       r.sent_monotonic_ns / 1'000'000'000LL, r.sent_monotonic_ns % 1'000'000'000LL,
-                       sup ? " and the supervisor" : "");
-    int rc = kExitOk;
-    for (const EstopOutcome& o : r.nodes) {
-      if (!o.error.empty()) {
-        out << o.name << " " << o.endpoint << ": NOT SENT: " << o.error << "\n";
-        rc = kExitNoReply;
-      } else if (!o.reply) {
-        out << o.name << " " << o.endpoint << ": NO REPLY within " << timeout_ms << " ms\n";
-        rc = kExitNoReply;
-      } else {
-        out << o.name << " " << o.endpoint << ": " << v1::NodeMode_Name(o.reply->mode()) << " ("
-            << o.reply->mode_reason() << ")"
-            << (o.via_supervisor
-                    ? std::string(" through the supervisor (no direct reply)")
-                    : fmt::format(" in {:.1f} ms", static_cast<double>(o.reply_ns) * 1e-6))
-            << "\n";
-        if (!o.safe() && rc == kExitOk) rc = kExitRefused;
-      }
+    if (json) {
+      out << estop_json(r, sup, timeout_ms).dump() << "\n";
+    } else {
+      print_estop(out, r, sup, timeout_ms);
     }
-    if (sup) {
-      out << "supervisor " << sup->endpoint << ": ";
-      if (!r.supervisor_error.empty()) {
-        out << "not told: " << r.supervisor_error << "\n";
-      } else if (!r.supervisor) {
-        out << "told, no reply while the nodes answered (not waited for)\n";
-      } else if (!r.supervisor->error().empty()) {
-        out << "told, answered: " << r.supervisor->error() << "\n";
-      } else {
-        out << "told, confirmed\n";
-      }
-    }
-    return rc;
+    return estop_exit_code(r);
   });
 }
 
@@ -176,11 +241,7 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
     }
     const v1::SupervisorStatus& s = reply->status();
     if (json) {
-      std::string text;
-      google::protobuf::util::JsonPrintOptions o;
-      o.always_print_primitive_fields = true;
-      (void)google::protobuf::util::MessageToJsonString(s, &text, o);
-      out << text << "\n";
+      out << proto_json(s).dump() << "\n";
       return kExitOk;
     }
     // docs/nodes.md "Before engage": the experiment banner and any configuration mismatch first.

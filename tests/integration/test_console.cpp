@@ -223,7 +223,8 @@ class LiveSystem {
     if (r.exit_code != 0) return std::nullopt;
     const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
     if (j.is_discarded() || !j.contains("report")) return std::nullopt;
-    return Model{j["report"].value("roundTripSamples", 0), j["report"].value("sampleRateHz", 0.0)};
+    return Model{j["report"].value("round_trip_samples", 0),
+                 j["report"].value("sample_rate_hz", 0.0)};
   }
   // `teleopctl analyze --max-stiffness slave --json` of this system's file with that model.
   [[nodiscard]] std::optional<double> analysed_limit(const Model& m, std::string& out) const {

@@ -548,8 +548,8 @@ TEST(HostileEstopLaunch, LaunchWithoutKeysRefusesPlaintextClientsAndTheLocalClie
   const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(p.request);
   CliResult r = run(env + " " + TELEOPCTL_PATH + " status --json" + sup, false);
   ASSERT_EQ(r.exit_code, 0) << r.out << launch.log();
-  EXPECT_EQ(nlohmann::json::parse(r.out)["clientMayCommand"], true) << r.out;
-  EXPECT_EQ(nlohmann::json::parse(r.out)["masterAlive"], true) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["client_may_command"], true) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["master_alive"], true) << r.out;
   r = run(env + " " + TELEOPCTL_PATH + " set slave.fixture.stiffness_N_per_m=300" + sup);
   EXPECT_EQ(r.exit_code, 0) << r.out << launch.log();
   EXPECT_TRUE(keyed.wait_for([](const v1::Telemetry& t) {

@@ -66,7 +66,9 @@ std::string example_with_endpoints(const std::string& name, const SystemPorts& p
     const std::string open = master ? "master {" : "slave {";
     const std::size_t at = text.find(open);
     if (at == std::string::npos) return "";
-    text.insert(at + open.size(), " " + node_section(p.nodes, master, "", 80) + " ");
+    // (Appended, not " " + node_section(...): GCC 12's -O3 -Wrestrict misreads that one.)
+    text.insert(at + open.size(),
+                std::string(" ").append(node_section(p.nodes, master, "", 80)) + " ");
   }
   return text + "\n" + supervisor_section(p, record_dir, supervisor_extra) +
          kAllowUnauthenticatedRetune;
@@ -1014,9 +1016,9 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
     if (reports.reports().size() == before) break;
   }
   EXPECT_EQ(j["report"]["verdict"], published.verdict());
-  EXPECT_DOUBLE_EQ(j["report"]["minDampingRatio"].get<double>(), published.min_damping_ratio());
-  EXPECT_EQ(j["report"]["roundTripSamples"].get<int>(), published.round_trip_samples());
-  const double json_limit = j["report"]["maxStableSlaveStiffnessNPerM"].get<double>();
+  EXPECT_DOUBLE_EQ(j["report"]["min_damping_ratio"].get<double>(), published.min_damping_ratio());
+  EXPECT_EQ(j["report"]["round_trip_samples"].get<int>(), published.round_trip_samples());
+  const double json_limit = j["report"]["max_stable_slave_stiffness_N_per_m"].get<double>();
   EXPECT_DOUBLE_EQ(json_limit, published.max_stable_slave_stiffness_n_per_m());
   const CliResult analyze =
       teleopctl("analyze " + sys.config().string() + " --max-stiffness slave --json --set " +
@@ -1029,15 +1031,16 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   // The report in a status carries the round trip measured now, the model's basis: set (the
   // report published at the start had none yet), and the model's samples are it in whole
   // periods of the model's rate, rounded up, at least the file's one.
-  const auto measured_ns = std::stoll(j["report"].value("measuredRoundTripNs", std::string("0")));
+  const auto measured_ns =
+      std::stoll(j["report"].value("measured_round_trip_ns", std::string("0")));
   EXPECT_GT(measured_ns, 0) << j["report"].dump();
-  const double period_ns = 1e9 / j["report"]["sampleRateHz"].get<double>();
+  const double period_ns = 1e9 / j["report"]["sample_rate_hz"].get<double>();
   EXPECT_EQ(
-      j["report"]["roundTripSamples"].get<int>(),
+      j["report"]["round_trip_samples"].get<int>(),
       std::max(1, static_cast<int>(std::ceil(static_cast<double>(measured_ns) / period_ns - 1e-9))))
       << j["report"].dump();
-  EXPECT_EQ(j["masterAlive"], true);
-  EXPECT_EQ(j["slaveAlive"], true);
+  EXPECT_EQ(j["master_alive"], true);
+  EXPECT_EQ(j["slave_alive"], true);
   // The node summaries: the mode each node reports, its loop at the configured 1 kHz, the
   // fixture in force and a position within what the node sent.
   EXPECT_EQ(j["master"]["mode"], "ENGAGED") << j.dump();
@@ -1047,7 +1050,7 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
   // whole machine inside the summary's window (852 Hz on both nodes once in CI, 0.6 s after
   // engaging) passes with the window: the rate must come back within a few seconds.
   for (const char* side : {"master", "slave"}) {
-    const double rate = j[side]["loopRateHz"].get<double>();
+    const double rate = j[side]["loop_rate_hz"].get<double>();
     EXPECT_LE(rate, 1000.0 * 1.001) << side;
   }
   std::string rates;
@@ -1057,26 +1060,26 @@ TEST(SupervisorLive, StatusJsonIsTheSupervisorsReportAndEstopReachesBothNodes) {
             "status --json --supervisor 127.0.0.1:" + std::to_string(ports.request), false);
         const nlohmann::json s = nlohmann::json::parse(again.out, nullptr, false);
         if (s.is_discarded() || !s.contains("master") || !s.contains("slave")) return false;
-        const double m = s["master"].value("loopRateHz", 0.0);
-        const double sl = s["slave"].value("loopRateHz", 0.0);
+        const double m = s["master"].value("loop_rate_hz", 0.0);
+        const double sl = s["slave"].value("loop_rate_hz", 0.0);
         rates = std::to_string(m) + " / " + std::to_string(sl) + " Hz";
         return m >= 900.0 && sl >= 900.0 && m <= 1001.0 && sl <= 1001.0;
       },
       5s))
       << "loop rates master / slave " << rates;
-  EXPECT_DOUBLE_EQ(j["slave"]["active"]["slaveFixtureStiffnessNPerM"].get<double>(),
+  EXPECT_DOUBLE_EQ(j["slave"]["active"]["slave_fixture_stiffness_N_per_m"].get<double>(),
                    st.last()->active().slave_fixture_stiffness_n_per_m());
   const std::vector<v1::CycleRecord> cycles = mt.cycles();
-  const double x = j["master"]["positionM"].get<double>();
+  const double x = j["master"]["position_m"].get<double>();
   EXPECT_TRUE(std::any_of(cycles.begin(), cycles.end(),
                           [&](const v1::CycleRecord& c) { return c.position_m() == x; }))
       << "the status's master position " << x << " is not one the master sent";
-  EXPECT_EQ(j["master"]["positionTraceM"]["min"].size(),
-            j["master"]["positionTraceM"]["max"].size());
+  EXPECT_EQ(j["master"]["position_trace_m"]["min"].size(),
+            j["master"]["position_trace_m"]["max"].size());
   // The newest cycle is in the trace's newest bucket (floats there).
-  ASSERT_GE(j["master"]["positionTraceM"]["min"].size(), 1u);
-  EXPECT_LE(j["master"]["positionTraceM"]["min"].back().get<float>(), static_cast<float>(x));
-  EXPECT_GE(j["master"]["positionTraceM"]["max"].back().get<float>(), static_cast<float>(x));
+  ASSERT_GE(j["master"]["position_trace_m"]["min"].size(), 1u);
+  EXPECT_LE(j["master"]["position_trace_m"]["min"].back().get<float>(), static_cast<float>(x));
+  EXPECT_GE(j["master"]["position_trace_m"]["max"].back().get<float>(), static_cast<float>(x));
 
   const CliResult estop = teleopctl("estop " + sys.config().string());
   EXPECT_EQ(estop.exit_code, 0) << estop.out;
@@ -1171,10 +1174,10 @@ TEST(SupervisorLive, ReadOnlyConsoleKeyMayWatchPredictAndEstopButChangesNothing)
   // Both keys may watch; only the console's may command.
   CliResult r = teleopctl("status --json" + sup + viewer, false);
   ASSERT_EQ(r.exit_code, 0) << r.out << sys.logs();
-  EXPECT_EQ(nlohmann::json::parse(r.out)["clientMayCommand"], false) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["client_may_command"], false) << r.out;
   r = teleopctl("status --json" + sup + console, false);
   ASSERT_EQ(r.exit_code, 0) << r.out;
-  EXPECT_EQ(nlohmann::json::parse(r.out)["clientMayCommand"], true) << r.out;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["client_may_command"], true) << r.out;
   // A key the supervisor does not list gets no answer at all.
   r = teleopctl("status --timeout-ms 1500" + sup + " --key " + key("stranger"));
   EXPECT_EQ(r.exit_code, 4) << r.out;

@@ -366,12 +366,12 @@ TEST(TwoHosts, TheTwoMachineExampleEngagesWithKeysFromKeygen) {
   // The supervisor records the session in the configured directory and analyses the
   // configuration it runs: stable with the measured round trip.
   EXPECT_EQ((*s)["report"].value("verdict", ""), "stable") << s->dump(1);
-  EXPECT_GE((*s)["report"].value("roundTripSamples", 0), 2) << s->dump(1);
-  EXPECT_NE(s->value("recordingFile", "").find((dir.path() / "sessions").string()),
+  EXPECT_GE((*s)["report"].value("round_trip_samples", 0), 2) << s->dump(1);
+  EXPECT_NE(s->value("recording_file", "").find((dir.path() / "sessions").string()),
             std::string::npos)
       << s->dump(1);
   std::cout << "two machines engaged over CURVE: round trip "
-            << (*s)["master"]["link"].value("roundTripNs", "?") << " ns on the master\n";
+            << (*s)["master"]["link"].value("round_trip_ns", "?") << " ns on the master\n";
 }
 
 }  // namespace
