@@ -1,6 +1,6 @@
-// TELEOP_RT marks a function that runs on a node's real-time thread (docs/architecture.md §4.1, §4.6):
-// it allocates nothing, takes no lock, does no I/O and never throws. Write it first in the
-// declaration, and declare the function noexcept:
+// TELEOP_RT marks a function that runs on a node's real-time thread (docs/architecture.md
+// §4.1, §4.6): it allocates nothing, takes no lock, does no I/O and never throws. Write it
+// first in the declaration, and declare the function noexcept:
 //
 //   TELEOP_RT [[nodiscard]] double step(double position_m) noexcept;
 //
