@@ -4,6 +4,7 @@
 #include <google/protobuf/message.h>
 
 #include <array>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -12,6 +13,7 @@
 #include <sstream>
 #include <system_error>
 
+#include "common/config/config_internal.hpp"
 #include "common/config/parameter_space.hpp"
 #include "common/config/text_format.hpp"
 #include "common/core/defaults.hpp"
@@ -25,6 +27,9 @@ using text_format::Problems;
 
 constexpr int kMaxDelaySamples = 1000;
 constexpr int kMaxPointsPerAxis = 100;
+
+// How many times validate() ran (validation_count()).
+std::atomic<std::uint64_t> validations{0};
 
 // ---------------------------------------------------------------------------------------------
 // Validation
@@ -237,17 +242,16 @@ void throw_missing(const std::vector<std::string>& missing) {
 
 // ---------------------------------------------------------------------------------------------
 
-LoadedConfig load_config_text(std::string_view text, std::string source_name,
-                              const std::vector<std::string>& overrides) {
+LoadedConfig parse_config_text(std::string_view text, std::string source_name,
+                               const std::vector<std::string>& overrides) {
   LoadedConfig loaded = text_format::parse(text, std::move(source_name));
   text_format::check_repeated_overrides(overrides);
   for (const std::string& assignment : overrides) apply_override(loaded, assignment);
-  validate(loaded);
   return loaded;
 }
 
-LoadedConfig load_config_file(const std::filesystem::path& path,
-                              const std::vector<std::string>& overrides) {
+LoadedConfig parse_config_file(const std::filesystem::path& path,
+                               const std::vector<std::string>& overrides) {
   const std::string name = path.string();
   std::error_code status_error;
   if (std::filesystem::is_directory(path, status_error)) {
@@ -260,10 +264,27 @@ LoadedConfig load_config_file(const std::filesystem::path& path,
   std::ostringstream contents;
   contents << file.rdbuf();
   if (file.bad()) throw ConfigError(name + ": cannot read: " + std::strerror(errno));
-  return load_config_text(contents.str(), name, overrides);
+  return parse_config_text(contents.str(), name, overrides);
 }
 
+LoadedConfig load_config_text(std::string_view text, std::string source_name,
+                              const std::vector<std::string>& overrides) {
+  LoadedConfig loaded = parse_config_text(text, std::move(source_name), overrides);
+  validate(loaded);
+  return loaded;
+}
+
+LoadedConfig load_config_file(const std::filesystem::path& path,
+                              const std::vector<std::string>& overrides) {
+  LoadedConfig loaded = parse_config_file(path, overrides);
+  validate(loaded);
+  return loaded;
+}
+
+std::uint64_t validation_count() noexcept { return validations.load(std::memory_order_relaxed); }
+
 void validate(const LoadedConfig& config) {
+  validations.fetch_add(1, std::memory_order_relaxed);
   Problems problems(config);
   check_fields(config.config, problems);
   check_ranges(config.config, problems);
@@ -273,6 +294,10 @@ void validate(const LoadedConfig& config) {
 
 TeleopParams to_teleop_params(const LoadedConfig& config) {
   validate(config);
+  return teleop_params_of_validated(config);
+}
+
+TeleopParams teleop_params_of_validated(const LoadedConfig& config) {
   const teleop::v1::SystemConfig& c = config.config;
   constexpr std::string_view kPurpose = "analyse the teleoperator";
   std::vector<std::string> missing;
@@ -330,6 +355,10 @@ TeleopParams to_teleop_params(const LoadedConfig& config) {
 
 ForceLoopParams to_force_loop_params(const LoadedConfig& config) {
   validate(config);
+  return force_loop_params_of_validated(config);
+}
+
+ForceLoopParams force_loop_params_of_validated(const LoadedConfig& config) {
   std::vector<std::string> missing;
   require_section(config, missing, config.config.has_force_loop(), "force_loop",
                   "analyse the force loop");

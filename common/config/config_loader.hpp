@@ -8,6 +8,7 @@
 
 #include <google/protobuf/text_format.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <stdexcept>
@@ -56,6 +57,14 @@ struct LoadedConfig {
 [[nodiscard]] LoadedConfig load_config_text(std::string_view text, std::string source_name,
                                             const std::vector<std::string>& overrides = {});
 
+// Parses and applies the overrides without validating: for compile_system
+// (system_compiler.hpp), which validates the result once. Throws ConfigError on unreadable
+// files, syntax errors, unknown fields and bad overrides.
+[[nodiscard]] LoadedConfig parse_config_file(const std::filesystem::path& path,
+                                             const std::vector<std::string>& overrides = {});
+[[nodiscard]] LoadedConfig parse_config_text(std::string_view text, std::string source_name,
+                                             const std::vector<std::string>& overrides = {});
+
 // Sets one field from `path=value` (the argument of `--set`), without validating the result
 // (overrides may pass through invalid states; call validate() after the last one).
 // - path is dotted through nested messages: `gains.kps`, `master.fixture.stiffness_N_per_m`.
@@ -76,6 +85,10 @@ void apply_override(LoadedConfig& config, std::string_view assignment);
 // command at hand needs are checked by to_teleop_params / to_force_loop_params.
 // Throws ConfigError listing every problem.
 void validate(const LoadedConfig& config);
+
+// How many times validate() ran in this process (every caller's): the tests read it to check
+// that one node start, one supervisor start or one scene validates the file once.
+[[nodiscard]] std::uint64_t validation_count() noexcept;
 
 // The teleoperator for the stability engine. Validates first, then requires sample_rate_hz,
 // master.device, slave.device and gains, e.g. "FILE: missing section 'gains' (needed to analyse

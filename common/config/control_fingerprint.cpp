@@ -9,6 +9,7 @@
 #include <string_view>
 
 #include "common/config/node_loader.hpp"
+#include "common/config/system_compiler.hpp"
 #include "common/stability/analyzer.hpp"
 
 namespace teleop::config {
@@ -122,9 +123,9 @@ std::vector<ControlField> control_fields(const TeleopParams& p, const node::Node
 }
 
 std::vector<ControlField> control_fields(const LoadedConfig& config) {
-  const NodeSetup setup = to_node_setup(config, transport::Role::kMaster);
-  return control_fields(to_teleop_params(config), setup.settings,
-                        config.config.experiment().allow_unstable());
+  const CompiledSystem system = compile_system(config);
+  return control_fields(system.teleop(), system.node(transport::Role::kMaster).settings,
+                        system.allow_unstable());
 }
 
 std::uint64_t fingerprint(const std::vector<ControlField>& fields) {

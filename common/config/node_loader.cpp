@@ -3,9 +3,10 @@
 #include <cmath>
 #include <string>
 
+#include "common/config/config_internal.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/parameter_space.hpp"
-#include "common/config/scene_loader.hpp"
+#include "common/config/system_compiler.hpp"
 #include "common/core/defaults.hpp"
 
 namespace teleop::config {
@@ -61,35 +62,6 @@ NodeEndpoints default_endpoints(Role role) {
 }
 
 namespace {
-
-// The simulated devices and the law of the scene: the same code path as `teleopctl simulate`,
-// so a live run and a lockstep run of one file agree. Without a scene, a scene with no push in
-// free space; a band of humans holds the handle as the band's middle at its lowest force.
-scene::SceneSetup node_scene(const LoadedConfig& config) {
-  LoadedConfig scene_config = config;
-  v1::Scene& scene = *scene_config.config.mutable_scene();
-  if (!scene.has_duration_s()) scene.set_duration_s(1.0);
-  // The sides' simulated stand-ins (a USB side's simulated device is simply unused).
-  scene_config.config.mutable_master()->mutable_device()->set_kind(v1::SIM);
-  scene_config.config.mutable_slave()->mutable_device()->set_kind(v1::SIM);
-  const TeleopParams analysed = to_teleop_params(config);
-  if (analysed.human.kind == HumanKind::kBand && !scene.has_malicious_user()) {
-    const HumanBand& band = analysed.human.band;
-    const double f = band.force_levels_N.empty() ? 0.0 : band.force_levels_N.front();
-    auto mid = [f](const ParameterBand& b) { return 0.5 * (b.lower.at(f) + b.upper.at(f)); };
-    v1::HumanImpedance fixed;
-    fixed.set_mass_kg(mid(band.mass_kg));
-    fixed.set_damping_ns_per_m(mid(band.damping_Ns_per_m));
-    fixed.set_stiffness_n_per_m(mid(band.stiffness_N_per_m));
-    *scene_config.config.mutable_human()->mutable_fixed() = fixed;
-  }
-  if (scene.has_force_device()) {
-    throw ConfigError(config.source_name +
-                      ": scene.force_device: the nodes run the bilateral paddles; a force-device "
-                      "scene is for `teleopctl simulate`");
-  }
-  return to_scene_setup(scene_config);
-}
 
 // The link's timing and the alignment (link.*), defaults filled in.
 void link_settings(Problems& p, const v1::Link& link, double rate_hz, node::NodeSettings& out) {
@@ -217,13 +189,15 @@ NodeKeys node_keys(Problems& p, const v1::Security& sec, const v1::Node& node, b
   return keys;
 }
 
-NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
+}  // namespace
+
+NodeSetup node_setup_of_validated(const LoadedConfig& config, const TeleopParams& teleop,
+                                  const SimulatedSides& sides, Role role) {
   const bool master = role == Role::kMaster;
   const v1::SystemConfig& c = config.config;
-  const scene::SceneSetup s = node_scene(config);
 
   NodeSetup out;
-  const double rate_hz = s.teleop.sample_rate_hz;
+  const double rate_hz = teleop.sample_rate_hz;
   // A node's loop: 1 Hz to 100 kHz (the analyser's range; its period in whole nanoseconds).
   if (!(rate_hz >= 1.0 && rate_hz <= 100000.0)) {
     throw ConfigError(config.source_name +
@@ -233,11 +207,10 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
   out.settings.role = role;
   out.settings.period =
       std::chrono::nanoseconds(static_cast<long long>(std::llround(1e9 / rate_hz)));
-  out.settings.law = s.law;
-  out.sim = master ? s.master : s.slave;
+  out.settings.law = sides.law;
+  out.sim = master ? sides.master : sides.slave;
   out.sim.period = out.settings.period;
   out.sim.hold_scene_until_engaged = true;
-  if (s.ideal) out.sim.quantize_position = false;
 
   Problems p(config);
   link_settings(p, c.link(), rate_hz, out.settings);
@@ -249,22 +222,17 @@ NodeSetup one_node_setup(const LoadedConfig& config, Role role) {
   process_settings(p, master ? "master" : "slave", own.node(), out);
   out.keys = node_keys(p, c.security(), own.node(), master);
   p.throw_if_any();
+  // docs/nodes.md "Before engage": what the peer and the supervisor compare before coupling.
+  out.settings.config_fingerprint =
+      fingerprint(control_fields(teleop, out.settings, c.experiment().allow_unstable()));
   return out;
 }
-
-}  // namespace
 
 NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
   if (role != Role::kMaster && role != Role::kSlave) {
     throw ConfigError("node role must be master or slave");
   }
-  // Both sides' sections are checked by either node: one file, one verdict.
-  (void)one_node_setup(config, role == Role::kMaster ? Role::kSlave : Role::kMaster);
-  NodeSetup out = one_node_setup(config, role);
-  // docs/nodes.md "Before engage": what the peer and the supervisor compare before coupling.
-  out.settings.config_fingerprint = fingerprint(control_fields(
-      to_teleop_params(config), out.settings, config.config.experiment().allow_unstable()));
-  return out;
+  return compile_system(config).node(role);
 }
 
 }  // namespace teleop::config

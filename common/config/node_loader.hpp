@@ -65,11 +65,10 @@ struct NodeSetup {
 // telemetry 5564/5565.
 [[nodiscard]] NodeEndpoints default_endpoints(transport::Role role);
 
-// Validates and requires what the analysis requires (the node runs exactly the analysed law),
-// plus the node sections' ranges. The simulated device is the scene's (`scene`, when present:
-// the human's push and the environment), on hold until the node engages; without a scene the
-// human holds the handle without pushing (human.fixed, or the middle of human.band at its
-// lowest force level) and the slave is in free space. Throws ConfigError naming the field.
+// One node's part of compile_system(config) (system_compiler.hpp), which validates the whole
+// file once: `compile_system(config).node(role)`. For tools that need one node's endpoints; a
+// process that runs the system takes it from compile_system. Throws ConfigError naming the
+// field.
 [[nodiscard]] NodeSetup to_node_setup(const LoadedConfig& config, transport::Role role);
 
 }  // namespace teleop::config

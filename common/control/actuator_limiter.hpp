@@ -2,6 +2,7 @@
 #pragma once
 
 #include "common/control/law_params.hpp"
+#include "common/core/rt_safe.hpp"
 
 namespace teleop::control {
 
@@ -19,10 +20,10 @@ class ActuatorLimiter {
   // Clamps to +-max_force_N, then to within max_rate_N_per_s * T of the previous output (the
   // previous output is itself within the force limit, so the result honours both). `requested_N`
   // must be finite. RT-safe.
-  [[nodiscard]] Result apply(double requested_N) noexcept;
+  TELEOP_RT [[nodiscard]] Result apply(double requested_N) noexcept;
 
   // The output the next rate limit starts from (a fault's 0 N, or reset()).
-  void set_last_output(double force_N) noexcept { last_N_ = force_N; }
+  TELEOP_RT void set_last_output(double force_N) noexcept { last_N_ = force_N; }
   [[nodiscard]] double last_output() const noexcept { return last_N_; }
 
  private:

@@ -1,6 +1,7 @@
 // Unilateral virtual fixture (eq. 7): F = K (x - p) for x > p, else 0.
 #pragma once
 
+#include "common/core/rt_safe.hpp"
 #include "common/core/teleop_params.hpp"
 
 namespace teleop::control {
@@ -15,10 +16,10 @@ class UnilateralFixture {
   explicit UnilateralFixture(const FixtureParams& params) noexcept : params_(params) {}
 
   // A fixture with zero stiffness is absent: no term, no penetration.
-  [[nodiscard]] bool active() const noexcept { return params_.stiffness_N_per_m != 0.0; }
+  TELEOP_RT [[nodiscard]] bool active() const noexcept { return params_.stiffness_N_per_m != 0.0; }
 
   // RT-safe.
-  [[nodiscard]] FixtureOutput evaluate(double position_m) const noexcept {
+  TELEOP_RT [[nodiscard]] FixtureOutput evaluate(double position_m) const noexcept {
     FixtureOutput out;
     if (active() && position_m > params_.position_m) {
       out.penetration_m = position_m - params_.position_m;

@@ -13,6 +13,7 @@
 #include "common/control/actuator_limiter.hpp"
 #include "common/control/law_params.hpp"
 #include "common/control/velocity_estimator.hpp"
+#include "common/core/rt_safe.hpp"
 #include "common/core/teleop_params.hpp"
 
 namespace teleop::control {
@@ -25,15 +26,15 @@ class MovingAverage {
 
   // Adds a sample (finite: callers check) and returns the mean of the last min(count, N).
   // RT-safe.
-  double push(double sample) noexcept;
-  [[nodiscard]] double mean() const noexcept;
+  TELEOP_RT double push(double sample) noexcept;
+  TELEOP_RT [[nodiscard]] double mean() const noexcept;
   [[nodiscard]] int window() const noexcept { return static_cast<int>(buffer_.size()); }
   [[nodiscard]] int count() const noexcept { return count_; }
   // Forgets every sample (no deallocation). RT-safe.
-  void clear() noexcept;
+  TELEOP_RT void clear() noexcept;
 
  private:
-  void add(double value) noexcept;
+  TELEOP_RT void add(double value) noexcept;
 
   std::vector<double> buffer_;
   std::size_t next_{0};
@@ -73,10 +74,11 @@ class ForceLoopController {
   // integral does not take a sample's error when the unlimited output is beyond the force
   // limit and that error would push it further. Non-finite input or output: 0 N,
   // input_fault, latched until reset(). RT-safe.
-  [[nodiscard]] ForceLoopCommand step(double desired_force_N, double sensed_force_N) noexcept;
+  TELEOP_RT [[nodiscard]] ForceLoopCommand step(double desired_force_N,
+                                                double sensed_force_N) noexcept;
 
   // Clears the average, the integral and the fault latch. RT-safe.
-  void reset() noexcept;
+  TELEOP_RT void reset() noexcept;
 
   [[nodiscard]] bool faulted() const noexcept { return faulted_; }
   [[nodiscard]] const ForceLoopSettings& settings() const noexcept { return settings_; }
@@ -99,7 +101,7 @@ struct VirtualSpringDamper {
   double position_m{0.0};
 
   // RT-safe.
-  [[nodiscard]] double force_N(double position, double velocity_m_per_s) const noexcept {
+  TELEOP_RT [[nodiscard]] double force_N(double position, double velocity_m_per_s) const noexcept {
     const double penetration_m = position - position_m;
     if (!(penetration_m > 0.0)) return 0.0;
     return stiffness_N_per_m * penetration_m + damping_Ns_per_m * velocity_m_per_s;
@@ -116,8 +118,8 @@ class VirtualEnvironmentRenderer {
 
   // One sample: device position and force-sensor reading. Non-finite input: 0 N, latched.
   // RT-safe.
-  [[nodiscard]] ForceLoopCommand step(double position_m, double sensed_force_N) noexcept;
-  void reset() noexcept;
+  TELEOP_RT [[nodiscard]] ForceLoopCommand step(double position_m, double sensed_force_N) noexcept;
+  TELEOP_RT void reset() noexcept;
   [[nodiscard]] double velocity_m_per_s() const noexcept { return estimator_.velocity_m_per_s(); }
 
  private:

@@ -13,6 +13,7 @@
 #include "common/control/fixture.hpp"
 #include "common/control/law_params.hpp"
 #include "common/control/velocity_estimator.hpp"
+#include "common/core/rt_safe.hpp"
 
 namespace teleop::control {
 
@@ -33,21 +34,21 @@ class LawCore {
                        : 1.0) {}
 
   // New gains and this side's fixture from the next step on.
-  void retune(const Gains& gains, const FixtureParams& fixture) noexcept {
+  TELEOP_RT void retune(const Gains& gains, const FixtureParams& fixture) noexcept {
     params_.gains = gains;
     (side_ == Side::kMaster ? params_.master_fixture : params_.slave_fixture) = fixture;
     fixture_ = UnilateralFixture(fixture);
   }
 
   // A valid peer state with a non-finite field: a fault.
-  [[nodiscard]] static bool bad_peer(const PeerState& p) noexcept {
+  TELEOP_RT [[nodiscard]] static bool bad_peer(const PeerState& p) noexcept {
     return p.valid && !(std::isfinite(p.position_m) && std::isfinite(p.velocity_m_per_s) &&
                         std::isfinite(p.force_N));
   }
 
   // Latches the fault: a 0 N command with flags.input_fault, now and at every step until
   // reset().
-  [[nodiscard]] Command latch_fault() noexcept {
+  TELEOP_RT [[nodiscard]] Command latch_fault() noexcept {
     faulted_ = true;
     limiter_.set_last_output(0.0);
     Command out;
@@ -57,12 +58,12 @@ class LawCore {
 
   // Clears the latch and the limiter's memory; the filter at rest at the next sample, or at
   // `position_m` when it is finite.
-  void reset() noexcept {
+  TELEOP_RT void reset() noexcept {
     faulted_ = false;
     limiter_.set_last_output(0.0);
     estimator_.reset();
   }
-  void reset(double position_m) noexcept {
+  TELEOP_RT void reset(double position_m) noexcept {
     faulted_ = false;
     limiter_.set_last_output(0.0);
     if (std::isfinite(position_m)) {
@@ -73,7 +74,7 @@ class LawCore {
   }
 
   // The coupling weight one sample on, towards 1 (fading in) or 0 (fading out).
-  [[nodiscard]] double faded(double weight, bool in) const noexcept {
+  TELEOP_RT [[nodiscard]] double faded(double weight, bool in) const noexcept {
     return in ? std::min(1.0, weight + fade_step_) : std::max(0.0, weight - fade_step_);
   }
 

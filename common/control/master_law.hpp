@@ -36,6 +36,7 @@
 #pragma once
 
 #include "common/control/law_core.hpp"
+#include "common/core/rt_safe.hpp"
 
 namespace teleop::control {
 
@@ -46,26 +47,26 @@ class MasterLaw {
 
   // One sample: own measured position, newest slave state. RT-safe (no allocation, lock,
   // exception or I/O).
-  [[nodiscard]] Command step(double position_m, const PeerState& slave) noexcept;
+  TELEOP_RT [[nodiscard]] Command step(double position_m, const PeerState& slave) noexcept;
 
   // Live retuning (the supervisor's guarded parameter changes, ramped by the caller): new gains
   // and master fixture from the next step on, every other state kept. The caller validated
   // them (finite; stiffness >= 0). RT-safe.
-  void retune(const Gains& gains, const FixtureParams& master_fixture) noexcept;
+  TELEOP_RT void retune(const Gains& gains, const FixtureParams& master_fixture) noexcept;
 
   // Engage (true) or release (false) the clutch; takes effect at the next step(). RT-safe.
-  void set_clutch(bool engaged) noexcept { clutch_requested_ = engaged; }
+  TELEOP_RT void set_clutch(bool engaged) noexcept { clutch_requested_ = engaged; }
   [[nodiscard]] bool clutch_engaged() const noexcept { return clutch_requested_; }
 
   // What to send to the slave after step(): published position x_m - offset (x_hold while
   // clutched), own filtered velocity (0 while clutched), force 0, clutched, valid (false
   // before the first step and while faulted). RT-safe.
-  [[nodiscard]] PeerState peer_state() const noexcept;
+  TELEOP_RT [[nodiscard]] PeerState peer_state() const noexcept;
 
   // Clears the fault latch and every state except the clutch request: velocity at rest at
   // the next sample (or at `position_m`), offset 0, coupling fading in from 0. RT-safe.
-  void reset() noexcept;
-  void reset(double position_m) noexcept;
+  TELEOP_RT void reset() noexcept;
+  TELEOP_RT void reset(double position_m) noexcept;
 
   [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
   [[nodiscard]] double coupling_weight() const noexcept { return state_.weight; }
@@ -76,8 +77,8 @@ class MasterLaw {
   [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
 
  private:
-  void set_terms(const Gains& g) noexcept;
-  [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
+  TELEOP_RT void set_terms(const Gains& g) noexcept;
+  TELEOP_RT [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
 
   LawCore core_;
   // Which terms are non-zero (from the gains and beta).

@@ -40,6 +40,7 @@
 #pragma once
 
 #include "common/control/law_core.hpp"
+#include "common/core/rt_safe.hpp"
 
 namespace teleop::control {
 
@@ -51,23 +52,23 @@ class SlaveLaw {
   // One sample: own measured position, own measured environment force F_e (only relayed to
   // the master, for K_fm), newest master state. RT-safe (no allocation, lock, exception or
   // I/O).
-  [[nodiscard]] Command step(double position_m, double measured_force_N,
-                             const PeerState& master) noexcept;
+  TELEOP_RT [[nodiscard]] Command step(double position_m, double measured_force_N,
+                                       const PeerState& master) noexcept;
 
   // Live retuning (the supervisor's guarded parameter changes, ramped by the caller): new gains
   // and slave fixture from the next step on, every other state kept. The caller validated them.
   // RT-safe.
-  void retune(const Gains& gains, const FixtureParams& slave_fixture) noexcept;
+  TELEOP_RT void retune(const Gains& gains, const FixtureParams& slave_fixture) noexcept;
 
   // What to send to the master after step(): own position, own filtered velocity, measured
   // force, clutched = false, valid (false before the first step and while faulted). RT-safe.
-  [[nodiscard]] PeerState peer_state() const noexcept;
+  TELEOP_RT [[nodiscard]] PeerState peer_state() const noexcept;
 
   // Clears the fault latch and every state: velocity at rest at the next sample (or at
   // `position_m`), no reference (the next step holds where the slave is unless a valid
   // unclutched master state arrives), velocity reference fading in from 0. RT-safe.
-  void reset() noexcept;
-  void reset(double position_m) noexcept;
+  TELEOP_RT void reset() noexcept;
+  TELEOP_RT void reset(double position_m) noexcept;
 
   [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
   [[nodiscard]] bool holding() const noexcept { return state_.holding; }
@@ -80,8 +81,8 @@ class SlaveLaw {
   [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
 
  private:
-  void set_terms(const Gains& g) noexcept;
-  [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
+  TELEOP_RT void set_terms(const Gains& g) noexcept;
+  TELEOP_RT [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
 
   LawCore core_;
   // Which terms are non-zero (from the gains) and which limits are set.

@@ -2,6 +2,8 @@
 // docs/architecture.md §2.4.
 #pragma once
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::control {
 
 class VelocityEstimator {
@@ -13,12 +15,12 @@ class VelocityEstimator {
   // v(k) = (x(k) - x(k-1)) / T; v_f(k) = v_f(k-1) + a (v(k) - v_f(k-1)), a = 1 - e^{-2 pi fc T}.
   // The first sample after construction or reset() only primes x(k-1) and returns 0.
   // Returns the filtered velocity. RT-safe. Inputs must be finite (callers check).
-  [[nodiscard]] double step(double position_m) noexcept;
+  TELEOP_RT [[nodiscard]] double step(double position_m) noexcept;
 
   // At rest at `position_m`: x(k-1) = position_m, v_f = 0.
-  void reset(double position_m) noexcept;
+  TELEOP_RT void reset(double position_m) noexcept;
   // At rest wherever the next sample is.
-  void reset() noexcept;
+  TELEOP_RT void reset() noexcept;
 
   [[nodiscard]] double velocity_m_per_s() const noexcept { return filtered_; }
   [[nodiscard]] double raw_velocity_m_per_s() const noexcept { return raw_; }

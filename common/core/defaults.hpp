@@ -42,6 +42,22 @@ inline constexpr std::uint16_t kUsbVendorId = 0x1209;
 inline constexpr std::uint16_t kUsbProductId = 0x7E1E;
 inline constexpr std::chrono::milliseconds kUsbWatchdog{20};
 
+// --- a simulated device (teleop.v1.Device) ---------------------------------------------------
+
+// The paper's paddle hardware (Abbott-Okamura §4.1): 16-bit D/A at +-10 V, 1.65 N/V, and its
+// load cell's range.
+inline constexpr double kPaddleMaxForce_N = 16.5;
+inline constexpr double kPaddleLoadCellRange_N = 10.0;
+
+// --- a simulated scene (teleop.v1.Scene) -----------------------------------------------------
+
+// A malicious user (scene.malicious_user) holds each human of the band this long.
+inline constexpr double kMaliciousDwell_s = 1.0;
+// The force-device scene's grip between the hand and the handle, and where its tissue starts.
+inline constexpr double kGripStiffness_N_per_m = 2000.0;
+inline constexpr double kGripDamping_Ns_per_m = 20.0;
+inline constexpr double kForceDeviceTissuePosition_m = 0.03;
+
 // --- the analysis (teleop.v1.Human, ForceLoop, Analysis) -------------------------------------
 
 // Grid points per parameter of a human band.

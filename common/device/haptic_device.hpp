@@ -17,6 +17,8 @@
 #include <cstdint>
 #include <memory>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::device {
 
 enum class StatusCode : std::uint8_t {
@@ -71,22 +73,24 @@ class HapticDevice {
   virtual Status activate() = 0;
   virtual Status deactivate() = 0;
   // The latest sample. RT-safe.
-  virtual Status read(Sample& sample) noexcept = 0;
+  TELEOP_RT virtual Status read(Sample& sample) noexcept = 0;
   // Held until the next write. RT-safe.
-  virtual Status write(const Command& command) noexcept = 0;
+  TELEOP_RT virtual Status write(const Command& command) noexcept = 0;
   // End of the node's cycle, after write(): a simulated device steps its physics one period
   // here (the lockstep order: read, law, write, step); a real device has nothing to do.
   // RT-safe.
-  virtual Status tick(std::chrono::nanoseconds /*period*/) noexcept { return Status::Ok(); }
+  TELEOP_RT virtual Status tick(std::chrono::nanoseconds /*period*/) noexcept {
+    return Status::Ok();
+  }
   // The node became engaged (from aligning: the first time, or again after a safe or a
   // disengage): a simulated device starts its scene (the human's push, a malicious user's
   // schedule) the first time, and its operator takes the scene's push up again later ones; a
   // real device ignores it. RT-safe.
-  virtual void on_engaged() noexcept {}
+  TELEOP_RT virtual void on_engaged() noexcept {}
   // The coupling ended (engaged or clutched -> aligning, armed, safe, fault): a simulated
   // operator stops following the scene and cooperates with the guidance (sim_device.hpp); a
   // real device ignores it. RT-safe.
-  virtual void on_disengaged() noexcept {}
+  TELEOP_RT virtual void on_disengaged() noexcept {}
 };
 
 enum class DeviceKind { kSim, kUsb };

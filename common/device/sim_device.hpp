@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "common/core/rt_safe.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/sim/human.hpp"
 #include "common/sim/plant.hpp"
@@ -83,18 +84,20 @@ class SimDevice final : public HapticDevice {
   Status activate() override;
   // Disables the amplifier (0 N); the physics keeps running under advance().
   Status deactivate() override;
-  Status read(Sample& sample) noexcept override;
+  TELEOP_RT Status read(Sample& sample) noexcept override;
   // A non-finite command is refused (kInvalidArgument, 0 N held, flagged in the next sample).
-  Status write(const Command& command) noexcept override;
+  TELEOP_RT Status write(const Command& command) noexcept override;
 
   // One control period of physics with the held command, then a new sample. RT-safe at the
   // configured period; another period rebuilds the propagators first (slow, still no
   // allocation). Needs configure(); inactive or e-stopped, the actuator gives 0 N.
-  Status advance(std::chrono::nanoseconds period) noexcept;
+  TELEOP_RT Status advance(std::chrono::nanoseconds period) noexcept;
   // The node's cycle end: advance(period).
-  Status tick(std::chrono::nanoseconds period) noexcept override { return advance(period); }
-  void on_engaged() noexcept override;
-  void on_disengaged() noexcept override;
+  TELEOP_RT Status tick(std::chrono::nanoseconds period) noexcept override {
+    return advance(period);
+  }
+  TELEOP_RT void on_engaged() noexcept override;
+  TELEOP_RT void on_disengaged() noexcept override;
 
   // The simulated e-stop button: while engaged the actuator gives 0 N and samples carry kFault.
   void set_estop(bool engaged) noexcept { estop_ = engaged; }
@@ -107,7 +110,7 @@ class SimDevice final : public HapticDevice {
  private:
   enum class Stage { kUnconfigured, kInactive, kActive };
 
-  void take_sample(std::uint32_t flags) noexcept;
+  TELEOP_RT void take_sample(std::uint32_t flags) noexcept;
 
   SimDeviceConfig config_;
   Stage stage_{Stage::kUnconfigured};
@@ -125,7 +128,7 @@ class SimDevice final : public HapticDevice {
   HumanImpedance current_human_{};
   std::optional<std::size_t> malicious_index_{};
   // The operator after a coupling ended (SimDeviceConfig::operator_yield_per_s).
-  [[nodiscard]] double scene_time_s() const noexcept;
+  TELEOP_RT [[nodiscard]] double scene_time_s() const noexcept;
   double last_push_N_{0.0};
   bool cooperating_{false};
   double held_push_N_{0.0};

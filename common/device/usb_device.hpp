@@ -18,6 +18,7 @@
 #include <string>
 #include <thread>
 
+#include "common/core/rt_safe.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/device/usb_protocol.hpp"
 #include "common/device/usb_transport.hpp"
@@ -70,10 +71,10 @@ class UsbDevice final : public HapticDevice {
   // amplifier saturated -> kAmplifierSaturated; load cell at a rail -> kLoadCellClipped.
   // kUnavailable before the first acknowledged report; kFault with kFault set when the link is
   // lost. RT-safe.
-  Status read(Sample& sample) noexcept override;
+  TELEOP_RT Status read(Sample& sample) noexcept override;
   // Scales to DAC counts (clipped at full scale) for the I/O thread to send. A non-finite
   // force is refused: kInvalidArgument, 0 N sent, kCommandRejected in the next sample. RT-safe.
-  Status write(const Command& command) noexcept override;
+  TELEOP_RT Status write(const Command& command) noexcept override;
 
   struct LinkStats {
     std::uint64_t reports_accepted{0};

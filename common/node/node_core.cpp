@@ -30,6 +30,8 @@ NodeCore::NodeCore(const NodeSettings& settings, device::HapticDevice& device)
                 settings.law.velocity_cutoff_hz) {
   if (settings_.period.count() <= 0) throw std::invalid_argument("node period must be > 0");
   side_ = NodeSide::make(settings_);
+  entry_.core = this;
+  machine_.set_entry_handler(&entry_);
   active_.gains = settings_.law.gains;
   active_.master_fixture = settings_.law.master_fixture;
   active_.slave_fixture = settings_.law.slave_fixture;
@@ -129,9 +131,11 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
 
   const double own_m = sample.position_m;
   const double gap_m = have_peer_ ? side_->alignment_gap_m(own_m, peer_.state.position_m) : 0.0;
+  // A transition calls entry_ (enter()) from within the machine's step, with these.
+  entry_.own_m = own_m;
+  entry_.clock = clock;
   const CycleOutputs out = decide(now, next_command(), peer_age_ns, gap_m, device_fault, own_stall);
   const Mode mode = out.mode;
-  if (mode != last_mode_) enter(mode, own_m, clock);
   // A restart matters only to a coupling that was in progress.
   if (mode == Mode::kDisarmed || mode == Mode::kArmed) peer_restarted_ = false;
 
@@ -280,29 +284,24 @@ CycleOutputs NodeCore::decide(std::chrono::nanoseconds now, Command command,
   return out;
 }
 
-// The entry actions of `mode`.
-void NodeCore::enter(Mode mode, double own_m, std::chrono::nanoseconds clock) noexcept {
-  const bool unclutched = mode == Mode::kEngaged && last_mode_ == Mode::kClutched;
-  if (mode == Mode::kAligning || (mode == Mode::kEngaged && !unclutched)) {
-    // A fresh law at each stage: no offset, no stale filter state, the coupling fading in.
-    // Not on unclutch: the law absorbs the operator's indexing offset (master_law.hpp).
-    side_->reset_law(own_m);
-  }
-  if (mode == Mode::kAligning) peer_restarted_ = false;
-  const bool coupled_mode = mode == Mode::kEngaged || mode == Mode::kClutched;
-  const bool was_coupled = last_mode_ == Mode::kEngaged || last_mode_ == Mode::kClutched;
-  if (mode == Mode::kEngaged && !was_coupled) {
-    // The scene starts at the first engagement; the (simulated) operator takes it up again
-    // at each later one.
-    device_.on_engaged();
-  }
-  if (was_coupled && !coupled_mode) device_.on_disengaged();
-  if (mode == Mode::kSafe) {
+void NodeCore::Entry::on_enter(Mode /*from*/, Mode /*to*/, const EntryActions& actions) noexcept {
+  core->enter(actions, own_m, clock);
+}
+
+// The entry actions the state machine declared for this transition (entry_actions()).
+void NodeCore::enter(const EntryActions& a, double own_m, std::chrono::nanoseconds clock) noexcept {
+  // A fresh law at each stage: no offset, no stale filter state, the coupling fading in.
+  // Not on unclutch: the law absorbs the operator's indexing offset (master_law.hpp).
+  if (a.reset_law) side_->reset_law(own_m);
+  if (a.forget_peer_restart) peer_restarted_ = false;
+  // The scene starts at the first engagement; the (simulated) operator takes it up again at
+  // each later one.
+  if (a.device_engaged) device_.on_engaged();
+  if (a.device_disengaged) device_.on_disengaged();
+  if (a.start_safe_ramp) {
     safe_since_ = clock;
     safe_from_N_ = last_command_N_;
   }
-  if (mode == Mode::kFault || mode == Mode::kDisarmed) side_->reset_law(own_m);
-  last_mode_ = mode;
 }
 
 // Own state to the peer (the sender thread sends it).

@@ -41,6 +41,7 @@
 #include "common/control/slave_law.hpp"
 #include "common/control/velocity_estimator.hpp"
 #include "common/core/defaults.hpp"
+#include "common/core/rt_safe.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/node/node_side.hpp"
 #include "common/node/node_state_machine.hpp"
@@ -167,10 +168,11 @@ class NodeCore {
   // One cycle at `now` (its deadline on the monotonic clock). `timing`: the loop's statistics,
   // when run by a PeriodicLoop (read on this thread); its last_woke() is the clock of the
   // cycle. RT-safe: no allocation, lock, I/O or throw.
-  void step(std::chrono::nanoseconds now, const rt::LoopTiming* timing = nullptr) noexcept;
+  TELEOP_RT void step(std::chrono::nanoseconds now,
+                      const rt::LoopTiming* timing = nullptr) noexcept;
   // The same with the clock read at the cycle given (tests: a late wake-up).
-  void step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock,
-            const rt::LoopTiming* timing = nullptr) noexcept;
+  TELEOP_RT void step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock,
+                      const rt::LoopTiming* timing = nullptr) noexcept;
 
   // Link thread -> RT: the newest accepted peer state.
   [[nodiscard]] rt::LatestValue<PeerSample>& peer_in() noexcept { return peer_in_; }
@@ -225,24 +227,34 @@ class NodeCore {
 
  private:
   // The phases of step(), in order.
-  [[nodiscard]] const char* check_own_stall(std::chrono::nanoseconds clock) noexcept;
-  void receive_peer(std::chrono::nanoseconds now) noexcept;
-  [[nodiscard]] Command next_command() noexcept;
-  [[nodiscard]] CycleOutputs decide(std::chrono::nanoseconds now, Command command,
-                                    std::int64_t peer_age_ns, double gap_m, bool device_fault,
-                                    const char* own_stall) noexcept;
-  void enter(Mode mode, double own_m, std::chrono::nanoseconds clock) noexcept;
-  void publish_state(std::chrono::nanoseconds now, Mode mode, double own_m, double velocity_m_per_s,
-                     double measured_force_N, std::int64_t peer_age_ns,
-                     std::uint32_t flags) noexcept;
-  void publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept;
-  void apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept;
+  TELEOP_RT [[nodiscard]] const char* check_own_stall(std::chrono::nanoseconds clock) noexcept;
+  TELEOP_RT void receive_peer(std::chrono::nanoseconds now) noexcept;
+  TELEOP_RT [[nodiscard]] Command next_command() noexcept;
+  TELEOP_RT [[nodiscard]] CycleOutputs decide(std::chrono::nanoseconds now, Command command,
+                                              std::int64_t peer_age_ns, double gap_m,
+                                              bool device_fault, const char* own_stall) noexcept;
+  TELEOP_RT void enter(const EntryActions& actions, double own_m,
+                       std::chrono::nanoseconds clock) noexcept;
+  // The state machine's entry handler: carries out its entry actions with this cycle's own
+  // position and clock (set before the machine steps).
+  struct Entry final : EntryHandler {
+    NodeCore* core{nullptr};
+    double own_m{0.0};
+    std::chrono::nanoseconds clock{0};
+    TELEOP_RT void on_enter(Mode from, Mode to, const EntryActions& actions) noexcept override;
+  };
+  TELEOP_RT void publish_state(std::chrono::nanoseconds now, Mode mode, double own_m,
+                               double velocity_m_per_s, double measured_force_N,
+                               std::int64_t peer_age_ns, std::uint32_t flags) noexcept;
+  TELEOP_RT void publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept;
+  TELEOP_RT void apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept;
   // Why arm and engage are refused now (nullptr: permitted). RT-safe.
-  [[nodiscard]] const char* coupling_refusal() const noexcept;
+  TELEOP_RT [[nodiscard]] const char* coupling_refusal() const noexcept;
 
   NodeSettings settings_;
   device::HapticDevice& device_;
   NodeStateMachine machine_;
+  Entry entry_{};                   // the machine's entry handler (machine_.set_entry_handler)
   std::unique_ptr<NodeSide> side_;  // what the role decides (node_side.hpp)
   control::VelocityEstimator velocity_;
   transport::RoundTripEstimator round_trip_{};
@@ -277,7 +289,6 @@ class NodeCore {
   std::uint64_t peer_restarts_{0};
   bool peer_restarted_{false};  // since the last coupling began
   std::int64_t round_trip_ns_{0};
-  Mode last_mode_{Mode::kDisarmed};
   std::chrono::nanoseconds safe_since_{0};
   double last_command_N_{0.0};
   double safe_from_N_{0.0};

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "common/core/rt_safe.hpp"
 #include "common/node/node_core.hpp"
 
 namespace teleop::node {
@@ -13,18 +14,21 @@ class MasterSide final : public NodeSide {
   explicit MasterSide(const NodeSettings& s)
       : law_(s.law), alpha_(s.law.scaling.position), alignment_(s.alignment) {}
 
-  bool law_faulted() const noexcept override { return law_.faulted(); }
-  void reset_law(double position_m) noexcept override { law_.reset(position_m); }
-  void retune(const ActiveLaw& a) noexcept override { law_.retune(a.gains, a.master_fixture); }
-  double alignment_gap_m(double own_m, double peer_m) const noexcept override {
+  TELEOP_RT bool law_faulted() const noexcept override { return law_.faulted(); }
+  TELEOP_RT void reset_law(double position_m) noexcept override { law_.reset(position_m); }
+  TELEOP_RT void retune(const ActiveLaw& a) noexcept override {
+    law_.retune(a.gains, a.master_fixture);
+  }
+  TELEOP_RT double alignment_gap_m(double own_m, double peer_m) const noexcept override {
     return alpha_ * own_m - peer_m;
   }
-  bool takes_clutch() const noexcept override { return true; }
-  std::uint64_t master_sequence(std::uint64_t own, bool, std::uint64_t) const noexcept override {
+  TELEOP_RT bool takes_clutch() const noexcept override { return true; }
+  TELEOP_RT std::uint64_t master_sequence(std::uint64_t own, bool,
+                                          std::uint64_t) const noexcept override {
     return own;
   }
 
-  double command(const SideCycle& c, std::uint32_t& flags) noexcept override {
+  TELEOP_RT double command(const SideCycle& c, std::uint32_t& flags) noexcept override {
     switch (c.mode) {
       case Mode::kAligning:
         return centring(c);
@@ -48,7 +52,7 @@ class MasterSide final : public NodeSide {
     return 0.0;
   }
 
-  void publish(transport::NodeStateRecord& s, Mode mode, double) const noexcept override {
+  TELEOP_RT void publish(transport::NodeStateRecord& s, Mode mode, double) const noexcept override {
     s.force_N = 0.0;
     if (mode != Mode::kEngaged && mode != Mode::kClutched) return;
     const control::PeerState published = law_.peer_state();
@@ -56,13 +60,13 @@ class MasterSide final : public NodeSide {
     s.velocity_m_per_s = published.velocity_m_per_s;
     s.clutched = published.clutched;
   }
-  const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept override {
+  TELEOP_RT const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept override {
     return a.master_fixture;
   }
 
  private:
   // Toward the slave's position in master coordinates; the device is pushed along +x.
-  double centring(const SideCycle& c) const noexcept {
+  TELEOP_RT double centring(const SideCycle& c) const noexcept {
     if (!c.have_peer) return 0.0;
     const double target_m = c.peer->position_m / alpha_;
     const double f = -alignment_.centring_stiffness_N_per_m * (c.position_m - target_m) -
@@ -79,19 +83,21 @@ class SlaveSide final : public NodeSide {
  public:
   explicit SlaveSide(const NodeSettings& s) : law_(s.law), alpha_(s.law.scaling.position) {}
 
-  bool law_faulted() const noexcept override { return law_.faulted(); }
-  void reset_law(double position_m) noexcept override { law_.reset(position_m); }
-  void retune(const ActiveLaw& a) noexcept override { law_.retune(a.gains, a.slave_fixture); }
-  double alignment_gap_m(double own_m, double peer_m) const noexcept override {
+  TELEOP_RT bool law_faulted() const noexcept override { return law_.faulted(); }
+  TELEOP_RT void reset_law(double position_m) noexcept override { law_.reset(position_m); }
+  TELEOP_RT void retune(const ActiveLaw& a) noexcept override {
+    law_.retune(a.gains, a.slave_fixture);
+  }
+  TELEOP_RT double alignment_gap_m(double own_m, double peer_m) const noexcept override {
     return alpha_ * peer_m - own_m;
   }
-  bool takes_clutch() const noexcept override { return false; }
-  std::uint64_t master_sequence(std::uint64_t, bool have_peer,
-                                std::uint64_t peer) const noexcept override {
+  TELEOP_RT bool takes_clutch() const noexcept override { return false; }
+  TELEOP_RT std::uint64_t master_sequence(std::uint64_t, bool have_peer,
+                                          std::uint64_t peer) const noexcept override {
     return have_peer ? peer : 0;
   }
 
-  double command(const SideCycle& c, std::uint32_t& flags) noexcept override {
+  TELEOP_RT double command(const SideCycle& c, std::uint32_t& flags) noexcept override {
     switch (c.mode) {
       case Mode::kAligning:
       case Mode::kEngaged:
@@ -114,11 +120,11 @@ class SlaveSide final : public NodeSide {
     return 0.0;
   }
 
-  void publish(transport::NodeStateRecord& s, Mode,
-               double measured_force_N) const noexcept override {
+  TELEOP_RT void publish(transport::NodeStateRecord& s, Mode,
+                         double measured_force_N) const noexcept override {
     s.force_N = measured_force_N;
   }
-  const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept override {
+  TELEOP_RT const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept override {
     return a.slave_fixture;
   }
 

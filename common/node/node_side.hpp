@@ -9,6 +9,7 @@
 
 #include "common/control/master_law.hpp"
 #include "common/control/slave_law.hpp"
+#include "common/core/rt_safe.hpp"
 #include "common/node/node_state_machine.hpp"
 #include "common/transport/node_state_codec.hpp"
 
@@ -37,31 +38,34 @@ class NodeSide {
   // parameters.
   [[nodiscard]] static std::unique_ptr<NodeSide> make(const NodeSettings& settings);
 
-  [[nodiscard]] virtual bool law_faulted() const noexcept = 0;
+  TELEOP_RT [[nodiscard]] virtual bool law_faulted() const noexcept = 0;
   // A fresh law at `position_m`: no offset, no stale filter state, the coupling fading in.
-  virtual void reset_law(double position_m) noexcept = 0;
+  TELEOP_RT virtual void reset_law(double position_m) noexcept = 0;
   // The parameters in force (a guarded change, ramped by the caller).
-  virtual void retune(const ActiveLaw& active) noexcept = 0;
+  TELEOP_RT virtual void retune(const ActiveLaw& active) noexcept = 0;
   // alpha x_m - x_s (slave coordinates) from this side's position and the peer's.
-  [[nodiscard]] virtual double alignment_gap_m(double own_m, double peer_m) const noexcept = 0;
+  TELEOP_RT [[nodiscard]] virtual double alignment_gap_m(double own_m,
+                                                         double peer_m) const noexcept = 0;
   // Whether the operator's clutch commands are this side's (the slave holds by itself while
   // the master indexes).
-  [[nodiscard]] virtual bool takes_clutch() const noexcept = 0;
+  TELEOP_RT [[nodiscard]] virtual bool takes_clutch() const noexcept = 0;
   // The master's sequence as this side knows it: its own on the master, the newest master
   // state's on the slave.
-  [[nodiscard]] virtual std::uint64_t master_sequence(std::uint64_t own, bool have_peer,
-                                                      std::uint64_t peer) const noexcept = 0;
+  TELEOP_RT [[nodiscard]] virtual std::uint64_t master_sequence(
+      std::uint64_t own, bool have_peer, std::uint64_t peer) const noexcept = 0;
   // The actuator command of this cycle, N (law flags or-ed into `flags`).
-  [[nodiscard]] virtual double command(const SideCycle& c, std::uint32_t& flags) noexcept = 0;
+  TELEOP_RT [[nodiscard]] virtual double command(const SideCycle& c,
+                                                 std::uint32_t& flags) noexcept = 0;
   // What this side publishes of itself beyond position and velocity: the master its
   // clutch-corrected position while coupled, the slave its measured force.
-  virtual void publish(transport::NodeStateRecord& s, Mode mode,
-                       double measured_force_N) const noexcept = 0;
+  TELEOP_RT virtual void publish(transport::NodeStateRecord& s, Mode mode,
+                                 double measured_force_N) const noexcept = 0;
   // This side's fixture among the parameters in force.
-  [[nodiscard]] virtual const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept = 0;
+  TELEOP_RT [[nodiscard]] virtual const FixtureParams& own_fixture(
+      const ActiveLaw& a) const noexcept = 0;
 };
 
 // Law flag bits (CycleRecord::flags) of a law's command flags.
-[[nodiscard]] std::uint32_t law_flags(const control::CommandFlags& f) noexcept;
+TELEOP_RT [[nodiscard]] std::uint32_t law_flags(const control::CommandFlags& f) noexcept;
 
 }  // namespace teleop::node

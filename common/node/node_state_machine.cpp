@@ -51,6 +51,7 @@ bool NodeStateMachine::coupling_lost(const CycleInputs& in, bool peer_fresh,
 }
 
 CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
+  const Mode from = mode_;
   const bool peer_fresh = in.peer_seen && in.peer_age <= params_.peer_timeout;
   bool refused = false;
   // Safety first, from any state: e-stop and faults win over everything else.
@@ -128,6 +129,10 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
         break;
     }
   }
+
+  // At most one transition per step: its entry actions, once.
+  if (mode_ != from && on_enter_ != nullptr)
+    on_enter_->on_enter(from, mode_, entry_actions(from, mode_));
 
   CycleOutputs out;
   out.mode = mode_;

@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <type_traits>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::rt {
 
 template <typename T>
@@ -15,7 +17,7 @@ class LatestValue {
 
  public:
   // Writer side. RT-safe.
-  void write(const T& value) noexcept {
+  TELEOP_RT void write(const T& value) noexcept {
     buffers_[write_index_] = value;
     // Publish the written buffer, take the one the reader is not holding.
     const std::uint8_t previous = middle_.exchange(static_cast<std::uint8_t>(write_index_ | kFresh),
@@ -24,7 +26,7 @@ class LatestValue {
   }
 
   // Reader side: true and the newest value when one arrived since the last read. RT-safe.
-  [[nodiscard]] bool read(T& out) noexcept {
+  TELEOP_RT [[nodiscard]] bool read(T& out) noexcept {
     if ((middle_.load(std::memory_order_relaxed) & kFresh) == 0) return false;
     const std::uint8_t previous = middle_.exchange(read_index_, std::memory_order_acq_rel);
     read_index_ = previous & kIndexMask;

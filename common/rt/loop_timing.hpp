@@ -8,6 +8,8 @@
 #include <chrono>
 #include <cstdint>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::rt {
 
 // Log-spaced latency histogram from 1 us to ~1 s, fixed size (no allocation). RT-safe.
@@ -15,7 +17,7 @@ class LatencyHistogram {
  public:
   static constexpr int kBins = 64;  // 2^(i/3) us: 1 us .. 2^21 us
 
-  void add(std::chrono::nanoseconds value) noexcept;
+  TELEOP_RT void add(std::chrono::nanoseconds value) noexcept;
   [[nodiscard]] std::uint64_t count() const noexcept { return count_; }
   [[nodiscard]] std::chrono::nanoseconds max() const noexcept { return max_; }
   // Upper edge of the bin holding the q-quantile (q in [0, 1]); 0 when empty.
@@ -42,10 +44,10 @@ class LoopTiming {
   // Called on waking at `now`: records the latency, and when one or more whole periods were
   // missed counts them as overruns and moves the deadline past `now` (skip ahead). Returns the
   // deadline this cycle belongs to. RT-safe.
-  TimePoint woke(TimePoint now) noexcept;
+  TELEOP_RT TimePoint woke(TimePoint now) noexcept;
 
   // Called when the cycle's work is done at `now`. RT-safe.
-  void finished(TimePoint now) noexcept;
+  TELEOP_RT void finished(TimePoint now) noexcept;
 
   [[nodiscard]] std::uint64_t cycles() const noexcept { return cycles_; }
   [[nodiscard]] std::uint64_t overruns() const noexcept { return overruns_; }

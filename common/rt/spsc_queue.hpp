@@ -8,6 +8,8 @@
 #include <optional>
 #include <type_traits>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::rt {
 
 template <typename T, std::size_t Capacity>
@@ -17,7 +19,7 @@ class SpscQueue {
 
  public:
   // Producer side. False when full: the record is dropped and counted. RT-safe.
-  [[nodiscard]] bool try_push(const T& value) noexcept {
+  TELEOP_RT [[nodiscard]] bool try_push(const T& value) noexcept {
     const std::size_t head = head_.load(std::memory_order_relaxed);
     if (head - tail_.load(std::memory_order_acquire) == Capacity) {
       dropped_.fetch_add(1, std::memory_order_relaxed);
@@ -29,7 +31,7 @@ class SpscQueue {
   }
 
   // Consumer side. Empty when nothing is queued. RT-safe.
-  [[nodiscard]] std::optional<T> try_pop() noexcept {
+  TELEOP_RT [[nodiscard]] std::optional<T> try_pop() noexcept {
     const std::size_t tail = tail_.load(std::memory_order_relaxed);
     if (tail == head_.load(std::memory_order_acquire)) return std::nullopt;
     T value = slots_[tail & (Capacity - 1)];

@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <limits>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::rt {
 
 class WindowedHistogram {
@@ -27,7 +29,7 @@ class WindowedHistogram {
 
   // Ends the slots older than the window at `now_ns` (a monotonic time); the first call starts
   // the first slot.
-  void advance(std::int64_t now_ns) noexcept {
+  TELEOP_RT void advance(std::int64_t now_ns) noexcept {
     if (slot_start_ns_ == kUnset) {
       slot_start_ns_ = now_ns;
       return;
@@ -49,7 +51,7 @@ class WindowedHistogram {
   }
 
   // One value (ns; negative counts as 0) at `now_ns`.
-  void add(std::int64_t now_ns, std::int64_t value_ns) noexcept {
+  TELEOP_RT void add(std::int64_t now_ns, std::int64_t value_ns) noexcept {
     advance(now_ns);
     const std::size_t bin = static_cast<std::size_t>(bin_of(value_ns));
     ++slots_[static_cast<std::size_t>(current_)][bin];
@@ -79,7 +81,7 @@ class WindowedHistogram {
   [[nodiscard]] static std::int64_t upper_edge_ns(int bin) noexcept {
     return std::llround(1000.0 * std::exp2(static_cast<double>(bin) / kBinsPerOctave));
   }
-  [[nodiscard]] static int bin_of(std::int64_t value_ns) noexcept {
+  TELEOP_RT [[nodiscard]] static int bin_of(std::int64_t value_ns) noexcept {
     const double us = static_cast<double>(std::max<std::int64_t>(value_ns, 0)) / 1000.0;
     if (!(us > 1.0)) return 0;
     int bin = static_cast<int>(std::ceil(kBinsPerOctave * std::log2(us) - 1e-9));

@@ -11,6 +11,7 @@
 #include "common/config/config_loader.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/node_loader.hpp"
+#include "common/config/system_compiler.hpp"
 #include "common/core/command_line.hpp"
 #include "common/core/version.hpp"
 #include "common/device/sim_device.hpp"
@@ -56,9 +57,9 @@ std::unique_ptr<device::HapticDevice> open_device(const config::NodeSetup& setup
 // docs/nodes.md "Before engage": the node's own stability analysis of its configuration, here at
 // start (never on the RT thread, which only reads the outcome). A failed one refuses arm and
 // engage unless experiment.allow_unstable is set, which is then said loudly.
-void apply_configuration_check(const config::LoadedConfig& loaded, config::NodeSetup& setup) {
-  const config::ConfigurationCheck c = config::check_configuration(
-      config::to_teleop_params(loaded), loaded.config.experiment().allow_unstable());
+void apply_configuration_check(const config::CompiledSystem& system, config::NodeSetup& setup) {
+  const config::ConfigurationCheck c =
+      config::check_configuration(system.teleop(), system.allow_unstable());
   setup.settings.permits_coupling = c.permits_coupling;
   setup.settings.coupling_refusal =
       c.permits_coupling ? std::string() : "arm and engage " + c.refusal;
@@ -130,10 +131,11 @@ int run_node_main(transport::Role role, int argc, char** argv) {
   ServiceNotifier notifier("RT loop");
   std::unique_ptr<NodeApp> app;
   try {
-    const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
-    config::NodeSetup setup = config::to_node_setup(loaded, role);
+    // The file, validated once, as the whole typed system (system_compiler.hpp).
+    const config::CompiledSystem system = config::compile_system_file(config_path, overrides);
+    config::NodeSetup setup = system.node(role);
     setup.settings.session_id = random_session_id();
-    apply_configuration_check(loaded, setup);
+    apply_configuration_check(system, setup);
     app = std::make_unique<NodeApp>(setup, open_device(setup));
     app->start();
   } catch (const config::ConfigError& e) {

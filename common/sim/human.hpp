@@ -9,6 +9,7 @@
 #include <optional>
 #include <vector>
 
+#include "common/core/rt_safe.hpp"
 #include "common/core/teleop_params.hpp"
 
 namespace teleop::sim {
@@ -38,7 +39,7 @@ struct ForceProfile {
                                           std::vector<double> values_N);
 
   void validate() const;  // throws std::invalid_argument naming the field
-  [[nodiscard]] double at(double t_s) const noexcept;  // RT-safe
+  TELEOP_RT [[nodiscard]] double at(double t_s) const noexcept;  // RT-safe
 };
 
 // How F_h* enters the plant within one control period [t, t + T).
@@ -72,7 +73,7 @@ class MaliciousUser {
     return schedule_[index];
   }
   [[nodiscard]] bool is_corner(std::size_t index) const noexcept { return index < 8; }
-  [[nodiscard]] std::size_t index_at(double t_s) const noexcept;  // RT-safe
+  TELEOP_RT [[nodiscard]] std::size_t index_at(double t_s) const noexcept;  // RT-safe
   [[nodiscard]] const MaliciousUserParams& params() const noexcept { return params_; }
 
  private:
@@ -96,10 +97,10 @@ class Human {
   explicit Human(HumanParams params);  // throws std::invalid_argument naming the field
 
   // F_h* over [t, t + T) per the sampling mode. RT-safe.
-  [[nodiscard]] PeriodForce exogenous(double t_s, double period_s) const noexcept;
-  [[nodiscard]] HumanImpedance impedance_at(double t_s) const noexcept;
+  TELEOP_RT [[nodiscard]] PeriodForce exogenous(double t_s, double period_s) const noexcept;
+  TELEOP_RT [[nodiscard]] HumanImpedance impedance_at(double t_s) const noexcept;
   // The malicious user's schedule index at t (for logging); nullopt for a fixed impedance.
-  [[nodiscard]] std::optional<std::size_t> malicious_index_at(double t_s) const noexcept;
+  TELEOP_RT [[nodiscard]] std::optional<std::size_t> malicious_index_at(double t_s) const noexcept;
   [[nodiscard]] const HumanParams& params() const noexcept { return params_; }
   [[nodiscard]] const std::optional<MaliciousUser>& malicious() const noexcept {
     return malicious_;

@@ -52,6 +52,7 @@
 #include <chrono>
 #include <cstdint>
 
+#include "common/core/rt_safe.hpp"
 #include "common/core/teleop_params.hpp"
 
 namespace teleop::sim {
@@ -116,8 +117,8 @@ class Plant {
 
   // One control period: actuator force u held, exogenous force (the human's F_h*)
   // exogenous_N + exogenous_slope_N_per_s * tau for tau in [0, T). RT-safe.
-  const PlantOutput& step(double actuator_force_N, double exogenous_force_N = 0.0,
-                          double exogenous_slope_N_per_s = 0.0) noexcept;
+  TELEOP_RT const PlantOutput& step(double actuator_force_N, double exogenous_force_N = 0.0,
+                                    double exogenous_slope_N_per_s = 0.0) noexcept;
 
   // The malicious user changes impedance at run time: recomputes the propagators.
   void set_human_impedance(const HumanImpedance& human);
@@ -165,25 +166,25 @@ class Plant {
 
   void validate() const;
   void rebuild();
-  [[nodiscard]] bool tissue() const noexcept;
-  [[nodiscard]] bool wall() const noexcept;
-  [[nodiscard]] bool tissue_contact(double x, double v) const noexcept;
-  [[nodiscard]] double net_force(double x, double tau, bool contact,
-                                 const Input& in) const noexcept;
-  [[nodiscard]] Mode classify(double tau, const Input& in) noexcept;
-  [[nodiscard]] bool valid(const Mode& mode, double x, double v) const noexcept;
+  TELEOP_RT [[nodiscard]] bool tissue() const noexcept;
+  TELEOP_RT [[nodiscard]] bool wall() const noexcept;
+  TELEOP_RT [[nodiscard]] bool tissue_contact(double x, double v) const noexcept;
+  TELEOP_RT [[nodiscard]] double net_force(double x, double tau, bool contact,
+                                           const Input& in) const noexcept;
+  TELEOP_RT [[nodiscard]] Mode classify(double tau, const Input& in) noexcept;
+  TELEOP_RT [[nodiscard]] bool valid(const Mode& mode, double x, double v) const noexcept;
   // Everything but damping: u + F_h* - k_h x - k_e (x - p_e) [contact] - F_c sign.
-  [[nodiscard]] double net_drive(const Mode& mode, double x, double tau,
-                                 const Input& in) const noexcept;
-  [[nodiscard]] double acceleration(const Mode& mode, double x, double v, double tau,
-                                    const Input& in) const noexcept;
-  [[nodiscard]] bool may_hide_event(const Mode& mode, double tau0, double x0, double v0,
-                                    double tau1, double x1, double v1,
-                                    const Input& in) const noexcept;
-  void correct(const Mode& mode) noexcept;
-  void step_substeps(const Input& in) noexcept;
-  void step_events(const Input& in) noexcept;
-  void finish(const Input& in) noexcept;
+  TELEOP_RT [[nodiscard]] double net_drive(const Mode& mode, double x, double tau,
+                                           const Input& in) const noexcept;
+  TELEOP_RT [[nodiscard]] double acceleration(const Mode& mode, double x, double v, double tau,
+                                              const Input& in) const noexcept;
+  TELEOP_RT [[nodiscard]] bool may_hide_event(const Mode& mode, double tau0, double x0, double v0,
+                                              double tau1, double x1, double v1,
+                                              const Input& in) const noexcept;
+  TELEOP_RT void correct(const Mode& mode) noexcept;
+  TELEOP_RT void step_substeps(const Input& in) noexcept;
+  TELEOP_RT void step_events(const Input& in) noexcept;
+  TELEOP_RT void finish(const Input& in) noexcept;
 
   PlantParams params_{};
   double period_s_{0.0};

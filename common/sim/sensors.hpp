@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <random>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::sim {
 
 // Position along the handle's arc = motor angle / transmission ratio * metres per radian.
@@ -34,8 +36,8 @@ class Encoder {
  public:
   explicit Encoder(const EncoderParams& params);  // throws std::invalid_argument naming the field
   [[nodiscard]] double step_m() const noexcept { return step_m_; }
-  [[nodiscard]] std::int64_t counts(double position_m) const noexcept;
-  [[nodiscard]] double read_m(double position_m) const noexcept;
+  TELEOP_RT [[nodiscard]] std::int64_t counts(double position_m) const noexcept;
+  TELEOP_RT [[nodiscard]] double read_m(double position_m) const noexcept;
 
  private:
   double step_m_{0.0};
@@ -47,10 +49,10 @@ class NormalSource {
  public:
   explicit NormalSource(std::uint64_t seed) : engine_(seed) {}
   void reseed(std::uint64_t seed) noexcept;
-  [[nodiscard]] double next() noexcept;
+  TELEOP_RT [[nodiscard]] double next() noexcept;
 
  private:
-  [[nodiscard]] double uniform_open() noexcept;  // in (0, 1)
+  TELEOP_RT [[nodiscard]] double uniform_open() noexcept;  // in (0, 1)
   std::mt19937_64 engine_;
   double spare_{0.0};
   bool has_spare_{false};
@@ -73,7 +75,7 @@ struct LoadCellReading {
 class LoadCell {
  public:
   LoadCell(const LoadCellParams& params, std::uint64_t seed);  // throws std::invalid_argument
-  [[nodiscard]] LoadCellReading measure(double true_force_N) noexcept;
+  TELEOP_RT [[nodiscard]] LoadCellReading measure(double true_force_N) noexcept;
   void reseed(std::uint64_t seed) noexcept { noise_.reseed(seed); }
   [[nodiscard]] const LoadCellParams& params() const noexcept { return params_; }
 
@@ -96,7 +98,7 @@ struct AmplifierOutput {
 class Amplifier {
  public:
   explicit Amplifier(const AmplifierParams& params);  // throws std::invalid_argument
-  [[nodiscard]] AmplifierOutput apply(double command_N) const noexcept;
+  TELEOP_RT [[nodiscard]] AmplifierOutput apply(double command_N) const noexcept;
   [[nodiscard]] const AmplifierParams& params() const noexcept { return params_; }
 
  private:

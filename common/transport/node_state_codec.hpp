@@ -11,6 +11,8 @@
 #include <string>
 #include <string_view>
 
+#include "common/core/rt_safe.hpp"
+
 namespace teleop::transport {
 
 enum class Role : std::uint8_t { kUnknown, kMaster, kSlave };
@@ -90,14 +92,14 @@ class RoundTripEstimator {
  public:
   static constexpr std::size_t kHistory = 1024;
 
-  void sent(std::uint64_t sequence, std::chrono::nanoseconds at) noexcept;
+  TELEOP_RT void sent(std::uint64_t sequence, std::chrono::nanoseconds at) noexcept;
   // The round trip this echo shows, if the echoed sequence is still in the history.
-  [[nodiscard]] std::optional<std::chrono::nanoseconds> echoed(
+  TELEOP_RT [[nodiscard]] std::optional<std::chrono::nanoseconds> echoed(
       std::uint64_t sequence, std::chrono::nanoseconds peer_held,
       std::chrono::nanoseconds now) const noexcept;
   // Rounded up to whole periods, as the stability model takes it (docs/architecture.md §2.5).
-  [[nodiscard]] static int samples(std::chrono::nanoseconds round_trip,
-                                   std::chrono::nanoseconds period) noexcept;
+  TELEOP_RT [[nodiscard]] static int samples(std::chrono::nanoseconds round_trip,
+                                             std::chrono::nanoseconds period) noexcept;
 
  private:
   std::array<std::uint64_t, kHistory> sequence_{};

@@ -70,8 +70,8 @@ void SupervisorCore::check_configurations() {
   approved.master_fixture_N_per_m = live_.master_fixture_N_per_m;
   approved.slave_fixture_N_per_m = live_.slave_fixture_N_per_m;
   const ConfigurationMismatch m = compare_configurations(
-      master_setup_.settings.config_fingerprint, approved, master_.last ? &*master_.last : nullptr,
-      slave_.last ? &*slave_.last : nullptr);
+      system_.node(transport::Role::kMaster).settings.config_fingerprint, approved,
+      master_.last ? &*master_.last : nullptr, slave_.last ? &*slave_.last : nullptr);
   if (!m.message.empty() && m.message != configuration_mismatch_) {
     alarm(v1::Alarm::WARNING, "configuration", m.side, m.message + " (arm and engage refused)", {});
   }

@@ -24,38 +24,23 @@ bool coupling(v1::NodeMode m) { return m == v1::ALIGNING || m == v1::ENGAGED || 
 
 SupervisorCore::SupervisorCore(const config::LoadedConfig& config, SupervisorOptions options,
                                SupervisorPorts& ports)
+    : SupervisorCore(config::compile_system(config), std::move(options), ports) {}
+
+SupervisorCore::SupervisorCore(config::CompiledSystem system, SupervisorOptions options,
+                               SupervisorPorts& ports)
     : ports_(ports),
-      loaded_(config),
-      params_(config::to_teleop_params(config)),
+      system_(std::move(system)),
+      params_(system_.teleop()),
       guard_(params_),
       audit_(ApprovedParameters{params_.gains, params_.master_fixture.stiffness_N_per_m,
                                 params_.slave_fixture.stiffness_N_per_m}),
-      opts_(std::move(options)),
-      master_setup_(config::to_node_setup(config, transport::Role::kMaster)),
-      slave_setup_(config::to_node_setup(config, transport::Role::kSlave)) {
-  const v1::Supervisor& s = config.config.supervisor();
-  report_endpoint_ = s.report_endpoint().empty() ? std::string(defaults::kSupervisorReportEndpoint)
-                                                 : s.report_endpoint();
-  request_endpoint_ = s.request_endpoint().empty()
-                          ? std::string(defaults::kSupervisorRequestEndpoint)
-                          : s.request_endpoint();
-  const double count_m =
-      2.0 * 3.141592653589793 * master_setup_.sim.encoder.metres_per_radian /
-      (master_setup_.sim.encoder.counts_per_rev * master_setup_.sim.encoder.transmission_ratio);
-  oscillation_threshold_m_ = s.has_oscillation_threshold_m()
-                                 ? s.oscillation_threshold_m()
-                                 : defaults::kOscillationThreshold_counts * count_m;
-  passivity_threshold_J_ =
-      s.has_passivity_threshold_j() ? s.passivity_threshold_j() : defaults::kPassivityThreshold_J;
-  passivity_power_threshold_W_ = s.has_passivity_power_threshold_w()
-                                     ? s.passivity_power_threshold_w()
-                                     : defaults::kPassivityPowerThreshold_W;
-  const double escalation_ms = s.has_escalation_ms()
-                                   ? s.escalation_ms()
-                                   : static_cast<double>(defaults::kEscalation.count());
-  escalation_ns_ = static_cast<std::int64_t>(escalation_ms * 1e6);
-  change_ramp_ms_ = s.has_change_ramp_ms() ? s.change_ramp_ms()
-                                           : static_cast<double>(defaults::kChangeRamp.count());
+      opts_(std::move(options)) {
+  const config::SupervisorSettings& s = system_.supervisor();
+  oscillation_threshold_m_ = s.oscillation_threshold_m;
+  passivity_threshold_J_ = s.passivity_threshold_J;
+  passivity_power_threshold_W_ = s.passivity_power_threshold_W;
+  escalation_ns_ = static_cast<std::int64_t>(s.escalation_ms * 1e6);
+  change_ramp_ms_ = s.change_ramp_ms;
   // The lowered stiffness is in force once the change applied (0.2 s) and ramped: only
   // evidence from then on may escalate further.
   ladder_ = EscalationLadder(escalation_ns_,
@@ -76,9 +61,6 @@ SupervisorCore::SupervisorCore(const config::LoadedConfig& config, SupervisorOpt
                                                          params_.master_fixture.stiffness_N_per_m);
   slave_.summary = std::make_unique<NodeSummaryBuilder>(false, params_.slave_fixture.position_m,
                                                         params_.slave_fixture.stiffness_N_per_m);
-  for (const std::string& k : config.config.security().read_only_client_public_keys()) {
-    read_only_keys_.push_back(k);
-  }
 }
 
 // --- messages out ----------------------------------------------------------------------------
@@ -161,7 +143,7 @@ void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind
 
 void SupervisorCore::start(std::int64_t now_ns) {
   now_ns_ = now_ns;
-  record(record::topic::kConfig, loaded_.config);
+  record(record::topic::kConfig, system_.source().config);
   publish_report("start");
   // Recording was asked for and could not start: said once, loudly, at start.
   if (!opts_.sink && !opts_.record_failure.empty()) {
@@ -425,8 +407,8 @@ v1::SupervisorReply SupervisorCore::on_request(const v1::SupervisorRequest& req,
     handle_request(req, reply);
     if (reply.has_status()) {
       reply.mutable_status()->set_client_may_command(
-          client_key.empty() || std::find(read_only_keys_.begin(), read_only_keys_.end(),
-                                          client_key) == read_only_keys_.end());
+          client_key.empty() || std::find(read_only_keys().begin(), read_only_keys().end(),
+                                          client_key) == read_only_keys().end());
     }
   } catch (const std::exception& e) {
     reply.set_error(e.what());
@@ -451,7 +433,7 @@ void SupervisorCore::handle_request(const v1::SupervisorRequest& req, v1::Superv
 std::string SupervisorCore::read_only_refusal(const v1::SupervisorRequest& req,
                                               const std::string& key) const {
   if (key.empty() ||
-      std::find(read_only_keys_.begin(), read_only_keys_.end(), key) == read_only_keys_.end()) {
+      std::find(read_only_keys().begin(), read_only_keys().end(), key) == read_only_keys().end()) {
     return {};
   }
   if (req.has_status()) return {};
@@ -529,7 +511,7 @@ void SupervisorCore::set_recording(bool on, v1::SupervisorReply& reply) {
   }
   opts_.sink = opts_.new_sink();
   recorder_failure_announced_ = false;
-  record(record::topic::kConfig, loaded_.config);
+  record(record::topic::kConfig, system_.source().config);
   record(record::topic::kStability, report_);
   alarm(v1::Alarm::INFO, "command", "system", "recording started: " + opts_.sink->file(), {});
 }
@@ -573,9 +555,9 @@ void SupervisorCore::fill_status(v1::SupervisorStatus& s, bool may_command) cons
 
 // docs/nodes.md "Before engage": the fingerprints, each node's own check, the experiment banner.
 void SupervisorCore::fill_configuration_status(v1::SupervisorStatus& s) const {
-  s.set_config_fingerprint(master_setup_.settings.config_fingerprint);
+  s.set_config_fingerprint(system_.node(transport::Role::kMaster).settings.config_fingerprint);
   s.set_configuration_mismatch(configuration_mismatch_);
-  s.set_experiment_banner(experiment_banner(loaded_.config.experiment().allow_unstable(),
+  s.set_experiment_banner(experiment_banner(system_.source().config.experiment().allow_unstable(),
                                             master_.last ? &*master_.last : nullptr,
                                             slave_.last ? &*slave_.last : nullptr));
   for (const auto& [view, summary] :

@@ -26,6 +26,7 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/config/node_loader.hpp"
+#include "common/config/system_compiler.hpp"
 #include "common/record/session.hpp"
 #include "supervisor/core/escalation.hpp"
 #include "supervisor/core/monitors.hpp"
@@ -76,6 +77,10 @@ inline constexpr std::int64_t kOwnStallNs = 250'000'000;
 
 class SupervisorCore {
  public:
+  // The system as config::compile_system (common/config/system_compiler.hpp) makes it: the
+  // teleoperator, both nodes' setups and the supervisor's settings, validated once.
+  SupervisorCore(config::CompiledSystem system, SupervisorOptions options, SupervisorPorts& ports);
+  // compile_system(config), then as above.
   SupervisorCore(const config::LoadedConfig& config, SupervisorOptions options,
                  SupervisorPorts& ports);
 
@@ -93,11 +98,17 @@ class SupervisorCore {
   void tick(std::int64_t now_ns);
 
   [[nodiscard]] const config::NodeSetup& node(Side side) const {
-    return side == Side::kMaster ? master_setup_ : slave_setup_;
+    return system_.node(side == Side::kMaster ? transport::Role::kMaster : transport::Role::kSlave);
   }
-  [[nodiscard]] const std::string& report_endpoint() const { return report_endpoint_; }
-  [[nodiscard]] const std::string& request_endpoint() const { return request_endpoint_; }
-  [[nodiscard]] const std::vector<std::string>& read_only_keys() const { return read_only_keys_; }
+  [[nodiscard]] const std::string& report_endpoint() const {
+    return system_.supervisor().report_endpoint;
+  }
+  [[nodiscard]] const std::string& request_endpoint() const {
+    return system_.supervisor().request_endpoint;
+  }
+  [[nodiscard]] const std::vector<std::string>& read_only_keys() const {
+    return system_.supervisor().read_only_client_keys;
+  }
   [[nodiscard]] EscalationState escalation() const { return ladder_.state(); }
   [[nodiscard]] const LiveInputs& live() const { return live_; }
   [[nodiscard]] const v1::StabilityReport& last_report() const { return report_; }
@@ -185,22 +196,17 @@ class SupervisorCore {
   void check_recorder();
 
   SupervisorPorts& ports_;
-  config::LoadedConfig loaded_;
+  config::CompiledSystem system_;
   TeleopParams params_;
   StabilityGuard guard_;
   ParameterAudit audit_;
   SupervisorOptions opts_;
-  config::NodeSetup master_setup_;
-  config::NodeSetup slave_setup_;
-  std::string report_endpoint_;
-  std::string request_endpoint_;
   double oscillation_threshold_m_{0.0};
   double passivity_threshold_J_{0.0};
   double passivity_power_threshold_W_{0.0};
   std::int64_t escalation_ns_{0};
   double change_ramp_ms_{200.0};
   double period_s_{0.001};
-  std::vector<std::string> read_only_keys_{};
 
   std::int64_t now_ns_{0};  // the time of the input being handled
   std::int64_t next_check_ns_{0};

@@ -41,13 +41,13 @@ std::int64_t monotonic_ns() {
 
 // The sockets and the loop around SupervisorCore: the core's ports are these sockets.
 struct SupervisorApp::Impl final : SupervisorPorts {
-  Impl(const config::LoadedConfig& config, SupervisorOptions options)
-      : loaded(config),
-        own_key(config.config.supervisor().secret_key_file().empty()
+  Impl(config::CompiledSystem system, SupervisorOptions options)
+      : loaded(system.source()),
+        own_key(loaded.config.supervisor().secret_key_file().empty()
                     ? std::nullopt
                     : std::optional<transport::CurveKeyPair>(transport::load_secret_key_file(
-                          config.config.supervisor().secret_key_file()))),
-        core(config, with_pid(std::move(options)), *this) {}
+                          loaded.config.supervisor().secret_key_file()))),
+        core(std::move(system), with_pid(std::move(options)), *this) {}
 
   static SupervisorOptions with_pid(SupervisorOptions o) {
     o.pid = static_cast<std::uint32_t>(::getpid());
@@ -226,8 +226,11 @@ struct SupervisorApp::Impl final : SupervisorPorts {
   std::atomic<std::uint64_t> iterations{0};  // the watchdog's heartbeat
 };
 
+SupervisorApp::SupervisorApp(config::CompiledSystem system, SupervisorOptions options)
+    : impl_(std::make_unique<Impl>(std::move(system), std::move(options))) {}
+
 SupervisorApp::SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options)
-    : impl_(std::make_unique<Impl>(config, std::move(options))) {}
+    : SupervisorApp(config::compile_system(config), std::move(options)) {}
 
 SupervisorApp::~SupervisorApp() = default;
 

@@ -18,6 +18,9 @@ namespace teleop::supervisor {
 
 class SupervisorApp {
  public:
+  // The system validated once (common/config/system_compiler.hpp).
+  SupervisorApp(config::CompiledSystem system, SupervisorOptions options);
+  // compile_system(config), then as above.
   SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options);
   ~SupervisorApp();
   SupervisorApp(const SupervisorApp&) = delete;

@@ -128,8 +128,9 @@ int run_supervisor_main(int argc, char** argv) {
   std::unique_ptr<SupervisorApp> app;
   std::optional<runtime::ServiceNotifier> notifier;
   try {
-    const config::LoadedConfig loaded = config::load_config_file(config_path, overrides);
-    const v1::Supervisor& s = loaded.config.supervisor();
+    // The file, validated once, as the whole typed system (system_compiler.hpp).
+    config::CompiledSystem system = config::compile_system_file(config_path, overrides);
+    const v1::Supervisor& s = system.source().config.supervisor();
     const bool recording = record && (!s.has_record() || s.record());
     const std::filesystem::path dir =
         record_dir ? *record_dir : (s.record_dir().empty() ? "." : s.record_dir());
@@ -152,7 +153,7 @@ int run_supervisor_main(int argc, char** argv) {
     if (options.sink) spdlog::info("recording to {}", options.sink->file());
     // systemd (Type=notify): logs whether the watchdog is on, once the logger is set up.
     notifier.emplace("main loop");
-    app = std::make_unique<SupervisorApp>(loaded, std::move(options));
+    app = std::make_unique<SupervisorApp>(std::move(system), std::move(options));
   } catch (const config::ConfigError& e) {
     std::cerr << "teleop-supervisor: invalid configuration:\n" << e.what() << "\n";
     if (notifier) notifier->status(std::string("invalid configuration: ") + e.what());

@@ -317,7 +317,9 @@ AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
 
 int run_analyze(const AnalyzeOptions& o, std::ostream& out, std::ostream& err) {
   return run_guarded("analyze", err, [&] {
-    const config::LoadedConfig cfg = config::load_config_file(o.config_path, o.overrides);
+    // Parsed with the overrides; the typed builder each analysis calls (to_teleop_params,
+    // to_force_loop_params) validates it, once.
+    const config::LoadedConfig cfg = config::parse_config_file(o.config_path, o.overrides);
     if (o.force_loop) return run_force_loop(cfg, o, out);
     if (o.max_stiffness_side) return run_limits(cfg, o, out, err);
     return run_single(cfg, o, out);

@@ -395,7 +395,8 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     std::vector<std::string> sets = o.overrides;
     if (o.duration_s) sets.push_back(fmt::format("scene.duration_s={}", *o.duration_s));
     if (o.seed) sets.push_back(fmt::format("scene.seed={}", *o.seed));
-    const config::LoadedConfig cfg = config::load_config_file(o.scene_path, sets);
+    // to_scene_setup validates the parsed file once and builds the sides as the nodes do.
+    const config::LoadedConfig cfg = config::parse_config_file(o.scene_path, sets);
     const scene::SceneSetup setup = config::to_scene_setup(cfg);
     scene::SimulationResult r;
     {

@@ -206,6 +206,139 @@ namespace {
 
 // The one mapping between node::Mode and the wire's teleop.v1.NodeMode, against the numbers
 // node_state.proto gives (DISARMED = 1 ... FAULT = 7, 0 unspecified), read from the .proto.
+// --- entry actions (the machine calls its handler once per transition) ------------------------
+
+// Counts what the machine asked for, per action, and every transition seen.
+struct Recorder final : EntryHandler {
+  int transitions{0};
+  int reset_law{0};
+  int forget_peer_restart{0};
+  int device_engaged{0};
+  int device_disengaged{0};
+  int start_safe_ramp{0};
+  Mode last_from{Mode::kDisarmed};
+  Mode last_to{Mode::kDisarmed};
+  void on_enter(Mode from, Mode to, const EntryActions& a) noexcept override {
+    ++transitions;
+    last_from = from;
+    last_to = to;
+    reset_law += a.reset_law ? 1 : 0;
+    forget_peer_restart += a.forget_peer_restart ? 1 : 0;
+    device_engaged += a.device_engaged ? 1 : 0;
+    device_disengaged += a.device_disengaged ? 1 : 0;
+    start_safe_ramp += a.start_safe_ramp ? 1 : 0;
+  }
+};
+
+struct RecordingDriver : Driver {
+  Recorder rec;
+  RecordingDriver() { sm.set_entry_handler(&rec); }
+  // Arms, engages and aligns: disarmed -> armed -> aligning -> engaged.
+  void engage() {
+    (void)cycle(Command::kArm);
+    (void)cycle(Command::kEngage);
+    aligned = true;
+    EXPECT_EQ(cycle().mode, Mode::kEngaged);
+  }
+};
+
+TEST(NodeStateMachineEntry, EveryTransitionIntoSafeStartsTheSafeRampExactlyOnce) {
+  RecordingDriver d;
+  // Into safe by e-stop from engaged, then held there: one entry, whatever follows.
+  d.engage();
+  const int before = d.rec.transitions;
+  EXPECT_EQ(d.cycle(Command::kEStop).mode, Mode::kSafe);
+  for (int i = 0; i < 20; ++i) (void)d.cycle(Command::kEStop);        // e-stop again: still safe
+  for (int i = 0; i < 100; ++i) (void)d.cycle(Command::kNone, true);  // silent peer
+  EXPECT_EQ(d.rec.start_safe_ramp, 1);
+  EXPECT_EQ(d.rec.transitions, before + 1);
+  EXPECT_EQ(d.rec.last_to, Mode::kSafe);
+  EXPECT_EQ(d.rec.device_disengaged, 1);  // it left a coupling
+  // Cleared, engaged again, then into safe by peer timeout (50 ms): a second ramp.
+  EXPECT_EQ(d.cycle(Command::kClear).mode, Mode::kDisarmed);
+  d.aligned = false;
+  d.engage();
+  for (int i = 0; i < 60; ++i) (void)d.cycle(Command::kNone, true);
+  EXPECT_EQ(d.sm.mode(), Mode::kSafe);
+  EXPECT_EQ(d.rec.start_safe_ramp, 2);
+  // From aligning by an own stall: a third; from disarmed by e-stop: a fourth.
+  (void)d.cycle(Command::kClear);
+  d.aligned = false;
+  (void)d.cycle(Command::kArm);
+  EXPECT_EQ(d.cycle(Command::kEngage).mode, Mode::kAligning);
+  CycleInputs stalled{d.now + milliseconds(1), Command::kNone, nanoseconds(0), true};
+  stalled.own_stall = "own loop stalled";
+  EXPECT_EQ(d.sm.step(stalled).mode, Mode::kSafe);
+  EXPECT_EQ(d.rec.start_safe_ramp, 3);
+  (void)d.cycle(Command::kClear);
+  (void)d.cycle(Command::kEStop);
+  EXPECT_EQ(d.rec.start_safe_ramp, 4);
+  EXPECT_EQ(d.rec.last_from, Mode::kDisarmed);
+}
+
+TEST(NodeStateMachineEntry, EveryTransitionIntoFaultResetsTheLawOnceAndEndsTheCoupling) {
+  RecordingDriver d;
+  d.engage();
+  const int resets = d.rec.reset_law;
+  d.device_fault = true;
+  for (int i = 0; i < 50; ++i) EXPECT_EQ(d.cycle().mode, Mode::kFault);  // latched: one entry
+  EXPECT_EQ(d.rec.reset_law, resets + 1);
+  EXPECT_EQ(d.rec.device_disengaged, 1);
+  EXPECT_EQ(d.rec.start_safe_ramp, 0);  // fault is 0 N at once, not a ramp
+  // A clear while the fault is present leaves nothing to enter; once gone, disarmed (a reset).
+  (void)d.cycle(Command::kClear);
+  EXPECT_EQ(d.rec.last_to, Mode::kFault);
+  d.device_fault = false;
+  EXPECT_EQ(d.cycle(Command::kClear).mode, Mode::kDisarmed);
+  EXPECT_EQ(d.rec.reset_law, resets + 2);
+  // From safe into fault (a law fault): again exactly one reset, nothing to disengage.
+  (void)d.cycle(Command::kEStop);
+  d.law_fault = true;
+  (void)d.cycle();
+  (void)d.cycle();
+  EXPECT_EQ(d.rec.last_from, Mode::kSafe);
+  EXPECT_EQ(d.rec.last_to, Mode::kFault);
+  EXPECT_EQ(d.rec.reset_law, resets + 3);
+  EXPECT_EQ(d.rec.device_disengaged, 1);
+}
+
+TEST(NodeStateMachineEntry, EngagingResetsTheLawAndStartsTheDeviceButUnclutchingDoesNot) {
+  RecordingDriver d;
+  (void)d.cycle(Command::kArm);
+  EXPECT_EQ(d.rec.reset_law, 0);  // arming changes nothing in the law
+  (void)d.cycle(Command::kEngage);
+  EXPECT_EQ(d.rec.reset_law, 1);  // aligning: a fresh law
+  EXPECT_EQ(d.rec.forget_peer_restart, 1);
+  EXPECT_EQ(d.rec.device_engaged, 0);
+  d.aligned = true;
+  (void)d.cycle();
+  EXPECT_EQ(d.rec.reset_law, 2);  // engaged from aligning: fresh again
+  EXPECT_EQ(d.rec.device_engaged, 1);
+  (void)d.cycle(Command::kClutch);
+  EXPECT_EQ(d.rec.device_disengaged, 0);  // clutched is still a coupling
+  EXPECT_EQ(d.cycle(Command::kUnclutch).mode, Mode::kEngaged);
+  EXPECT_EQ(d.rec.reset_law, 2);       // the law keeps the indexing offset
+  EXPECT_EQ(d.rec.device_engaged, 1);  // the operator never let go
+  EXPECT_EQ(d.cycle(Command::kDisengage).mode, Mode::kArmed);
+  EXPECT_EQ(d.rec.device_disengaged, 1);
+  EXPECT_EQ(d.rec.reset_law, 2);  // armed: the law is not running
+  EXPECT_EQ(d.cycle(Command::kDisengage).mode, Mode::kDisarmed);
+  EXPECT_EQ(d.rec.reset_law, 3);
+  EXPECT_EQ(d.rec.transitions, 7);
+}
+
+// No handler: the machine runs the same (the handler is an observer of its transitions).
+TEST(NodeStateMachineEntry, WithoutAHandlerTheModesAreTheSame) {
+  Driver plain;
+  RecordingDriver recorded;
+  const Command script[] = {Command::kArm,    Command::kEngage, Command::kNone,
+                            Command::kClutch, Command::kEStop,  Command::kClear};
+  for (const Command c : script) {
+    plain.aligned = recorded.aligned = c == Command::kNone;
+    EXPECT_EQ(plain.cycle(c).mode, recorded.cycle(c).mode);
+  }
+}
+
 TEST(WireMode, EveryModeHasTheProtoNumberAndBackAndUnknownReadsAsDisarmed) {
   const std::pair<Mode, int> proto[] = {
       {Mode::kDisarmed, 1}, {Mode::kArmed, 2}, {Mode::kAligning, 3}, {Mode::kEngaged, 4},

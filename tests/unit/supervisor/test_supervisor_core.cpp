@@ -518,3 +518,23 @@ TEST(SupervisorCore, AReadOnlyKeyMayAskForStatusAndEStopButNotForAChange) {
 
 }  // namespace
 }  // namespace teleop::supervisor
+
+namespace teleop::supervisor {
+namespace {
+
+// The supervisor's start validates the file once (supervisor_main.cpp: compile_system_file,
+// then the core from the compiled system), and its settings are the compiled ones.
+TEST(SupervisorCore, ItsStartValidatesTheFileOnceAndTakesTheCompiledSettings) {
+  const config::LoadedConfig parsed = config::parse_config_text(
+      paddles(1500.0), "test", {"supervisor.request_endpoint=tcp://127.0.0.1:6001"});
+  FakeNodes nodes(parsed);
+  const std::uint64_t before = config::validation_count();
+  SupervisorCore core(config::compile_system(parsed), {}, nodes);
+  EXPECT_EQ(config::validation_count() - before, 1U);
+  EXPECT_EQ(core.request_endpoint(), "tcp://127.0.0.1:6001");
+  EXPECT_EQ(core.report_endpoint(), "tcp://127.0.0.1:5566");  // the default
+  EXPECT_EQ(core.node(Side::kSlave).settings.law.slave_fixture.stiffness_N_per_m, 1500.0);
+}
+
+}  // namespace
+}  // namespace teleop::supervisor
