@@ -8,6 +8,7 @@
 #include <chrono>
 #include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -67,6 +68,8 @@ struct Channel {
   ChannelSpec spec;
   std::string schema_base64;
   std::atomic<std::uint32_t> subscribers{0};
+  // Latched channels: the newest message and its time (server thread only).
+  std::optional<std::pair<std::uint64_t, std::string>> last{};
 };
 
 struct Client {
@@ -220,6 +223,7 @@ struct FoxgloveServer::Impl {
       }
       client.subscriptions[id] = ch;
       c->subscribers.fetch_add(1, std::memory_order_relaxed);
+      if (c->last) send_data(h, id, c->last->first, c->last->second);
     }
   }
 
@@ -283,20 +287,24 @@ struct FoxgloveServer::Impl {
     on_text(h, m->get_payload());
   }
 
+  void send_data(Hdl h, std::uint32_t sub, std::uint64_t time_ns, const std::string& payload) {
+    websocketpp::lib::error_code ec;
+    const Server::connection_ptr con = server.get_con_from_hdl(h, ec);
+    if (ec || !con) return;
+    if (con->get_buffered_amount() > options.max_buffered_bytes) {
+      dropped.fetch_add(1, std::memory_order_relaxed);
+      return;
+    }
+    ec = con->send(message_data_frame(sub, time_ns, payload), websocketpp::frame::opcode::binary);
+    if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
+  }
+
   void deliver(std::uint32_t ch, std::uint64_t time_ns, const std::string& payload) {
+    if (Channel* c = channel(ch); c != nullptr && c->spec.latched)
+      c->last.emplace(time_ns, payload);
     for (auto& [h, client] : clients) {
       for (const auto& [sub, channel_id] : client.subscriptions) {
-        if (channel_id != ch) continue;
-        websocketpp::lib::error_code ec;
-        const Server::connection_ptr con = server.get_con_from_hdl(h, ec);
-        if (ec || !con) continue;
-        if (con->get_buffered_amount() > options.max_buffered_bytes) {
-          dropped.fetch_add(1, std::memory_order_relaxed);
-          continue;
-        }
-        ec = con->send(message_data_frame(sub, time_ns, payload),
-                       websocketpp::frame::opcode::binary);
-        if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
+        if (channel_id == ch) send_data(h, sub, time_ns, payload);
       }
     }
   }
@@ -418,7 +426,10 @@ std::uint32_t FoxgloveServer::add_channel(ChannelSpec spec) {
 void FoxgloveServer::publish(std::uint32_t channel, std::uint64_t receive_time_ns,
                              std::string_view payload) noexcept {
   Impl& m = *impl_;
-  if (!has_subscribers(channel)) return;
+  const Channel* c = m.channel(channel);
+  if (c == nullptr || (!c->spec.latched && c->subscribers.load(std::memory_order_relaxed) == 0)) {
+    return;
+  }
   if (m.pending.load(std::memory_order_relaxed) > kMaxPendingPosts) {
     m.dropped.fetch_add(1, std::memory_order_relaxed);
     return;

@@ -28,6 +28,9 @@ struct ChannelSpec {
   std::string schema_data{};
   std::string encoding{"protobuf"};
   std::string schema_encoding{"protobuf"};
+  // The newest message is kept and sent to each new subscriber at once (for channels that
+  // change rarely, such as the stability report).
+  bool latched{false};
 };
 
 struct ServerOptions {

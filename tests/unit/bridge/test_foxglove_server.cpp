@@ -338,6 +338,31 @@ TEST(FoxgloveServer, MessageDataFrameIsOpcodeSubscriptionTimestampPayloadLittleE
   EXPECT_EQ(server.stats().messages_sent, 1U);
 }
 
+// A latched channel (the stability report, published only when it changes) gives a new
+// subscriber the newest message at once, with its own timestamp.
+TEST(FoxgloveServer, ALatchedChannelGivesANewSubscriberTheNewestMessage) {
+  FoxgloveServer server(loopback_any_port());
+  ChannelSpec s = spec("/supervisor/stability");
+  s.latched = true;
+  const auto ch = server.add_channel(s);
+  const auto plain = server.add_channel(spec("/slave/cycle"));
+  server.publish(ch, 100, "older");
+  server.publish(ch, 200, "newest");
+  server.publish(plain, 300, "gone");
+  RawClient c(server.port());
+  (void)open_client(c);
+  c.send_text(
+      Json{{"op", "subscribe"},
+           {"subscriptions", {{{"id", 5}, {"channelId", ch}}, {{"id", 6}, {"channelId", plain}}}}}
+          .dump());
+  const auto f = c.read();
+  ASSERT_TRUE(f.has_value());
+  EXPECT_EQ(u32_le(f->payload, 1), 5U);
+  EXPECT_EQ(u64_le(f->payload, 5), 200U);
+  EXPECT_EQ(f->payload.substr(13), "newest");
+  EXPECT_FALSE(c.read(200ms).has_value());  // nothing kept for the plain channel
+}
+
 // Each of these gets a status with level 2 naming the problem; the connection stays and
 // serves a valid subscription afterwards.
 TEST(FoxgloveServer, MalformedJsonOpsGetAnErrorStatusAndTheConnectionStays) {
