@@ -191,7 +191,7 @@ class SupervisorFeed {
   void take(std::string_view topic, const zmq::message_t& body) {
     const std::string_view bytes(static_cast<const char*>(body.data()), body.size());
     const auto now = static_cast<std::uint64_t>(wall_ns());
-    if (topic == "report") server_.publish(stability_, now, bytes);
+    if (topic == "report") publish_report(now, std::string(bytes));
     if (topic == "alarm") {
       server_.publish(alarms_, now, bytes);
       v1::Alarm a;
@@ -200,7 +200,15 @@ class SupervisorFeed {
         server_.publish(log_, now, alarm_log(a, now).SerializeAsString());
       }
     }
-    if (topic == "status") server_.publish(status_, now, bytes);
+    if (topic == "status") {
+      server_.publish(status_, now, bytes);
+      // The report in force, from the summary: a bridge started after the supervisor's last
+      // report (it publishes one only when the model changes) still has it within 0.1 s.
+      v1::SupervisorStatus st;
+      if (st.ParseFromArray(body.data(), static_cast<int>(body.size())) && st.has_report()) {
+        publish_report(now, st.report().SerializeAsString());
+      }
+    }
   }
 
  private:
@@ -209,6 +217,14 @@ class SupervisorFeed {
   std::uint32_t alarms_;
   std::uint32_t status_;
   std::uint32_t log_;
+  std::string last_report_{};
+
+  // A report once: the same report from the summary again is not a new message.
+  void publish_report(std::uint64_t now, std::string bytes) {
+    if (bytes == last_report_) return;
+    server_.publish(stability_, now, bytes);
+    last_report_ = std::move(bytes);
+  }
 };
 
 // Whole messages from one socket without waiting; `take(parts)` gets each.
