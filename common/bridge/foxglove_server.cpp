@@ -128,6 +128,14 @@ struct FoxgloveServer::Impl {
     (void)con->send(text, websocketpp::frame::opcode::text);
   }
 
+  void event(Hdl h, const std::string& what) {
+    if (!options.on_event) return;
+    websocketpp::lib::error_code ec;
+    const Server::connection_ptr con = server.get_con_from_hdl(h, ec);
+    options.on_event((ec || !con ? std::string("a client") : con->get_remote_endpoint()) + " " +
+                     what);
+  }
+
   void status(Hdl h, int level, const std::string& message) {
     send_text(h, dump(Json{{"op", "status"}, {"level", level}, {"message", message}}));
   }
@@ -177,6 +185,7 @@ struct FoxgloveServer::Impl {
       }
     }
     send_text(h, dump(Json{{"op", "advertise"}, {"channels", list}}));
+    event(h, "connected");
   }
 
   void on_close(Hdl h) {
@@ -187,6 +196,7 @@ struct FoxgloveServer::Impl {
     }
     clients.erase(it);
     clients_now.store(clients.size(), std::memory_order_relaxed);
+    event(h, "disconnected");
   }
 
   void subscribe(Hdl h, Client& client, const Json& request) {
@@ -223,6 +233,7 @@ struct FoxgloveServer::Impl {
       }
       client.subscriptions[id] = ch;
       c->subscribers.fetch_add(1, std::memory_order_relaxed);
+      event(h, "subscribed to " + c->spec.topic);
       if (c->last) send_data(h, id, c->last->first, c->last->second);
     }
   }
@@ -241,7 +252,10 @@ struct FoxgloveServer::Impl {
         status(h, kWarning, "unsubscribe: " + dump(s) + " is not a subscription of this client");
         continue;
       }
-      if (Channel* c = channel(it->second)) c->subscribers.fetch_sub(1, std::memory_order_relaxed);
+      if (Channel* c = channel(it->second)) {
+        c->subscribers.fetch_sub(1, std::memory_order_relaxed);
+        event(h, "unsubscribed from " + c->spec.topic);
+      }
       client.subscriptions.erase(it);
     }
   }

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -41,6 +42,9 @@ struct ServerOptions {
   std::size_t max_clients{16};                      // further connections are refused
   std::size_t max_request_bytes{64 * 1024};         // a larger client message closes it (1009)
   std::size_t max_buffered_bytes{8 * 1024 * 1024};  // per client; beyond it messages drop
+  // Told each connection, subscription, unsubscription and disconnection as one line
+  // ("127.0.0.1:41234 subscribed to /slave/cycle"), on the server's thread; must not throw.
+  std::function<void(const std::string&)> on_event{};
 };
 
 struct ServerStats {

@@ -301,6 +301,12 @@ int serve(const BridgeArgs& a, const Sources& src, std::ostream& out) {
   options.metadata = {{"master_telemetry", src.master.endpoint},
                       {"slave_telemetry", src.slave.endpoint},
                       {"supervisor_report", src.supervisor.endpoint}};
+  options.on_event = [&out](const std::string& line) {
+    try {
+      out << "teleopctl bridge: " << line << std::endl;
+    } catch (...) {
+    }
+  };
   bridge::FoxgloveServer server(options);
   NodeFeed master(server, true);
   NodeFeed slave(server, false);

@@ -137,6 +137,7 @@ class BridgeSystem {
   }
 
   [[nodiscard]] int bridge_port() const { return ports_.bridge; }
+  [[nodiscard]] int slave_command_port() const { return ports_.nodes.slave_command; }
   [[nodiscard]] Process& bridge() { return *bridge_; }
   [[nodiscard]] std::string logs() const {
     return "--- master\n" + master_->log() + "--- slave\n" + slave_->log() + "--- supervisor\n" +
@@ -321,6 +322,50 @@ TEST(BridgeLive, FoxgloveClientDecodesEveryCycleAt1kHzWithTheEquilibriumOfTheLaw
   EXPECT_EQ(sys.bridge().wait(), 0) << sys.bridge().log();
   EXPECT_NE(sys.bridge().log().find("stopped; 1 connection(s)"), std::string::npos)
       << sys.bridge().log();
+}
+
+// An alarm reaches Foxglove twice: as teleop.v1.Alarm and as foxglove.Log for the Log panel.
+// The slave e-stopped directly makes the supervisor raise "node_state: went SAFE" (WARNING).
+TEST(BridgeLive, AnAlarmArrivesAsAlarmAndAsFoxgloveLogWithItsSeverity) {
+  ASSERT_TRUE(js_client_installed()) << kInstallJs;
+  BridgeSystem sys;
+  ASSERT_NO_FATAL_FAILURE(sys.start_engaged_with_bridge());
+  int code = -1;
+  Json s;
+  std::thread client([&] { s = sys.js_check(0.5, "/supervisor/log /supervisor/alarms", code); });
+  // Once the client has subscribed to both (the bridge says so), the e-stop.
+  const bool subscribed = eventually([&] {
+    const std::string log = sys.bridge().log();
+    return log.find("subscribed to /supervisor/log") != std::string::npos &&
+           log.find("subscribed to /supervisor/alarms") != std::string::npos;
+  });
+  if (subscribed) {
+    const auto r = send_command(sys.ctx, tcp(sys.slave_command_port()), v1::NodeCommand::ESTOP);
+    EXPECT_TRUE(r.has_value() && r->ok());
+  }
+  client.join();
+  ASSERT_TRUE(subscribed) << sys.logs();
+  ASSERT_EQ(code, 0) << s.dump(1) << sys.logs();
+  const auto find = [&](const std::string& topic, const std::function<bool(const Json&)>& pred) {
+    for (const Json& m : s["topics"][topic].value("all", Json::array())) {
+      if (pred(m)) return m;
+    }
+    return Json();
+  };
+  const Json alarm = find("/supervisor/alarms", [](const Json& m) {
+    return m["kind"] == "node_state" && m["side"] == "slave" &&
+           m["message"].get<std::string>().rfind("went SAFE", 0) == 0;
+  });
+  ASSERT_FALSE(alarm.is_null()) << s["topics"].dump(1);
+  EXPECT_EQ(alarm["severity"], "WARNING");
+  const std::string text = "node_state: " + alarm["message"].get<std::string>();
+  const Json log = find("/supervisor/log", [&](const Json& m) { return m["message"] == text; });
+  ASSERT_FALSE(log.is_null()) << text << "\n" << s["topics"]["/supervisor/log"].dump(1);
+  EXPECT_EQ(log["level"], "WARNING");
+  EXPECT_EQ(log["name"], "teleop-supervisor/slave");
+  // Its timestamp is the wall clock, within seconds of this test's.
+  const double seconds = std::stod(log["timestamp"]["seconds"].get<std::string>());
+  EXPECT_NEAR(seconds, static_cast<double>(wall_ns()) * 1e-9, 10.0);
 }
 
 // Raw bytes to the bridge's port: a connection, `bytes`, a short read, closed.

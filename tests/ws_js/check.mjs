@@ -71,9 +71,17 @@ function take(topic, receiveNs, msg) {
     s.modes[mode] = (s.modes[mode] ?? 0) + 1;
   }
   s.last = msg;
+  if (topic === "/supervisor/alarms" || topic === "/supervisor/log" ||
+      topic === "/supervisor/stability") {
+    s.all = s.all ?? [];
+    if (s.all.length < 200) s.all.push(msg);
+  }
 }
 
+let finished = false;
 function finish(code) {
+  if (finished) return;
+  finished = true;
   for (const s of Object.values(summary.topics)) {
     for (const key of ["position_m", "force_N"]) {
       s[key].mean = s.count > 0 ? s[key].sum / s.count : null;
@@ -81,8 +89,8 @@ function finish(code) {
       if (!Number.isFinite(s[key].max)) s[key].max = null;
     }
   }
-  process.stdout.write(JSON.stringify(summary) + "\n");
-  process.exit(code);
+  // Exit once written: a pipe's stdout is asynchronous, and exit() would cut it short.
+  process.stdout.write(JSON.stringify(summary) + "\n", () => process.exit(code));
 }
 
 const ws = new WebSocket(url, [FoxgloveClient.SUPPORTED_SUBPROTOCOL]);
@@ -141,9 +149,17 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
   const now = performance.now();
   if (!started.has(sub.topic)) started.set(sub.topic, now);
   if (now - started.get(sub.topic) <= windowS * 1000) take(sub.topic, Number(timestamp), msg);
+  checkDone();
+});
+
+// Done once every topic has had WINDOW_S seconds since its first message (checked on each
+// message and every 50 ms, for topics that go quiet such as the alarms).
+function checkDone() {
+  const now = performance.now();
   if (topics.every((t) => started.has(t) && now - started.get(t) > windowS * 1000)) {
     clearTimeout(timeout);
     client.close();
     finish(0);
   }
-});
+}
+setInterval(checkDone, 50);

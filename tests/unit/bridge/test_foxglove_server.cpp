@@ -14,6 +14,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <stdexcept>
@@ -304,7 +305,14 @@ TEST(FoxgloveServer, RefusesAClientWithoutTheSubprotocol) {
 }
 
 TEST(FoxgloveServer, MessageDataFrameIsOpcodeSubscriptionTimestampPayloadLittleEndian) {
-  FoxgloveServer server(loopback_any_port());
+  std::mutex events_mutex;
+  std::vector<std::string> events;
+  ServerOptions options = loopback_any_port();
+  options.on_event = [&](const std::string& line) {
+    std::lock_guard lock(events_mutex);
+    events.push_back(line);
+  };
+  FoxgloveServer server(options);
   const auto ch = server.add_channel(spec("/slave/cycle"));
   const auto other = server.add_channel(spec("/master/cycle"));
   RawClient c(server.port());
@@ -336,6 +344,13 @@ TEST(FoxgloveServer, MessageDataFrameIsOpcodeSubscriptionTimestampPayloadLittleE
   server.publish(ch, 7, "after");
   EXPECT_FALSE(c.read(200ms).has_value());
   EXPECT_EQ(server.stats().messages_sent, 1U);
+  // Each step told as a line naming the client's address and the topic.
+  std::lock_guard lock(events_mutex);
+  ASSERT_EQ(events.size(), 3U);
+  EXPECT_NE(events[0].find("127.0.0.1:"), std::string::npos) << events[0];
+  EXPECT_NE(events[0].find(" connected"), std::string::npos) << events[0];
+  EXPECT_NE(events[1].find(" subscribed to /slave/cycle"), std::string::npos) << events[1];
+  EXPECT_NE(events[2].find(" unsubscribed from /slave/cycle"), std::string::npos) << events[2];
 }
 
 // A latched channel (the stability report, published only when it changes) gives a new
