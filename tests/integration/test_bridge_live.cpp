@@ -368,6 +368,66 @@ TEST(BridgeLive, AnAlarmArrivesAsAlarmAndAsFoxgloveLogWithItsSeverity) {
   EXPECT_NEAR(seconds, static_cast<double>(wall_ns()) * 1e-9, 10.0);
 }
 
+// Secure by default (the launch's ephemeral CURVE keys): a bridge given no key finds the live
+// launch's console key, as the console does, and serves every cycle; one that finds no launch
+// is a plaintext client the nodes never answer, so Foxglove sees the channels but no message.
+TEST(BridgeLive, ServesALaunchOverItsCurveKeysAndNothingWithoutThem) {
+  ASSERT_TRUE(js_client_installed()) << kInstallJs;
+  TempDir dir;
+  const SystemPorts p;
+  const fs::path runtime = dir.path() / "runtime";
+  const fs::path config = dir.write("system.textproto", system_config(p, dir.path() / "sessions"));
+  const std::string env = "TELEOP_RUNTIME_DIR=" + runtime.string();
+  Process launch("/usr/bin/env",
+                 {env, std::string("TELEOP_MASTER_BIN=") + MASTER_BIN,
+                  std::string("TELEOP_SLAVE_BIN=") + SLAVE_BIN,
+                  std::string("TELEOP_SUPERVISOR_BIN=") + SUPERVISOR_BIN, TELEOPCTL_PATH, "launch",
+                  config.string(), "--record-dir", (dir.path() / "sessions").string()},
+                 dir.path() / "launch.log");
+  struct CtrlCAtEnd {  // SIGKILL would orphan the launch's nodes
+    Process& p;
+    ~CtrlCAtEnd() {
+      p.signal(SIGINT);
+      (void)p.wait();
+    }
+  } stop_launch{launch};
+  ASSERT_TRUE(eventually([&] {
+    return launch.log().find("Ctrl-C stops both nodes.") != std::string::npos;
+  })) << launch.log();
+  const auto check = [&](const std::string& runtime_env, int port, int& code) {
+    Process bridge(
+        "/usr/bin/env",
+        {runtime_env, TELEOPCTL_PATH, "bridge", config.string(), "--port", std::to_string(port)},
+        dir.path() / ("bridge-" + std::to_string(port) + ".log"));
+    EXPECT_TRUE(eventually([&] { return bridge.log().find("on ws://") != std::string::npos; }))
+        << bridge.log();
+    const CliResult r =
+        run("WS_CHECK_BOUND_S=4 " + std::string(NODE_BIN) + " " + WS_JS_DIR +
+                "/check.mjs ws://127.0.0.1:" + std::to_string(port) + " 1 /slave/cycle",
+            false);
+    code = r.exit_code;
+    bridge.signal(SIGTERM);
+    EXPECT_EQ(bridge.wait(), 0) << bridge.log();
+    return Json::parse(
+        r.out.substr(r.out.rfind("\n{") == std::string::npos ? 0 : r.out.rfind("\n{")), nullptr,
+        false);
+  };
+  int code = -1;
+  const Json keyed = check(env, free_port(), code);
+  ASSERT_EQ(code, 0) << keyed.dump(1) << launch.log();
+  const Json& t = keyed["topics"]["/slave/cycle"];
+  EXPECT_EQ(t["sequence_steps_not_one"], 0);
+  EXPECT_NEAR(rate_hz(t), kRateHz, 0.02 * kRateHz);
+  EXPECT_TRUE(t["modes"].contains("ENGAGED")) << t["modes"];
+  // No launch under this runtime directory: a plaintext client, refused by every endpoint.
+  const Json plain =
+      check("TELEOP_RUNTIME_DIR=" + (dir.path() / "none").string(), free_port(), code);
+  EXPECT_EQ(code, 2) << plain.dump(1);
+  ASSERT_TRUE(plain.is_object());
+  EXPECT_NE(channel(plain, "/slave/cycle"), nullptr);
+  EXPECT_FALSE(plain["topics"].contains("/slave/cycle")) << plain["topics"];
+}
+
 // Raw bytes to the bridge's port: a connection, `bytes`, a short read, closed.
 void send_raw(int port, const std::string& bytes) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
