@@ -26,8 +26,10 @@ using Json = nlohmann::json;
 // Level of a `status` message (spec: 0 info, 1 warning, 2 error).
 constexpr int kError = 2;
 constexpr int kWarning = 1;
-// Messages posted to the server thread and not yet delivered; beyond this, publish() drops.
+// Messages posted to the server thread and not yet delivered, and their bytes; beyond either,
+// publish() drops (the server thread stalled: memory stays bounded).
 constexpr int kMaxPendingPosts = 20000;
+constexpr std::size_t kMaxPendingBytes = std::size_t{64} << 20;
 
 // Ops of the spec that need a capability this server does not advertise.
 constexpr std::array<std::pair<std::string_view, std::string_view>, 9> kUnsupportedOps{{
@@ -98,6 +100,7 @@ struct FoxgloveServer::Impl {
   std::atomic<std::uint64_t> bad{0};
   std::atomic<std::uint64_t> refused{0};
   std::atomic<int> pending{0};
+  std::atomic<std::size_t> pending_bytes{0};
 
   explicit Impl(ServerOptions o) : options(std::move(o)) {}
 
@@ -444,15 +447,18 @@ void FoxgloveServer::publish(std::uint32_t channel, std::uint64_t receive_time_n
   if (c == nullptr || (!c->spec.latched && c->subscribers.load(std::memory_order_relaxed) == 0)) {
     return;
   }
-  if (m.pending.load(std::memory_order_relaxed) > kMaxPendingPosts) {
+  if (m.pending.load(std::memory_order_relaxed) > kMaxPendingPosts ||
+      m.pending_bytes.load(std::memory_order_relaxed) + payload.size() > kMaxPendingBytes) {
     m.dropped.fetch_add(1, std::memory_order_relaxed);
     return;
   }
   try {
     auto data = std::make_shared<std::string>(payload);
     m.pending.fetch_add(1, std::memory_order_relaxed);
+    m.pending_bytes.fetch_add(data->size(), std::memory_order_relaxed);
     websocketpp::lib::asio::post(m.server.get_io_service(), [&m, channel, receive_time_ns, data] {
       m.pending.fetch_sub(1, std::memory_order_relaxed);
+      m.pending_bytes.fetch_sub(data->size(), std::memory_order_relaxed);
       try {
         m.deliver(channel, receive_time_ns, *data);
       } catch (...) {

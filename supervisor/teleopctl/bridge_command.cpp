@@ -403,6 +403,7 @@ int run_bridge(const std::vector<std::string>& args, std::ostream& out, std::ost
       a.port = static_cast<int>(p);
     } else if (arg == "--address") {
       a.address = cur.value("--address");
+      if (a.address == "localhost") a.address = "127.0.0.1";
     } else if (arg == "--allow-remote") {
       a.allow_remote = true;
     } else if (arg == "--report") {
