@@ -28,7 +28,8 @@ root = sys.argv[1]
 # and those of any directory in a LOWER layer; never one in its own layer or above.
 LAYERS = [
     ["proto", "common/core"],
-    ["common/control", "common/stability", "common/rt", "common/transport", "common/record"],
+    ["common/control", "common/stability", "common/rt", "common/transport", "common/record",
+     "common/bridge"],
     ["common/sim"],
     ["common/device"],
     ["common/scene", "common/node"],
@@ -39,7 +40,7 @@ LAYERS = [
 ]
 # The real-time side and the plain-data libraries see no protobuf (docs/architecture.md §3.2).
 NO_PROTOBUF = ["common/core", "common/control", "common/stability", "common/sim",
-               "common/device", "common/rt", "common/scene", "common/node"]
+               "common/device", "common/rt", "common/scene", "common/node", "common/bridge"]
 
 SCANNED = ["common", "supervisor", "master_node", "slave_node"]
 # Top-level directories of the repository that are not product code: never included by it.
@@ -53,7 +54,7 @@ INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]')
 def directory_of(path):
     """The layer-table directory a repository path belongs to, or None."""
     parts = path.split("/")
-    if parts[0] == "teleop":  # generated from proto/teleop/...
+    if parts[0] in ("teleop", "foxglove"):  # generated from proto/teleop/..., proto/foxglove/...
         return "proto"
     if parts[0] in ("common", "supervisor") and len(parts) > 2:
         return parts[0] + "/" + parts[1]

@@ -7,6 +7,7 @@ packages=(
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libncurses-dev tmux jq
   libsystemd-dev systemd dpkg-dev iproute2 python3 help2man
+  libwebsocketpp-dev libasio-dev
 )
 missing=()
 for p in "${packages[@]}"; do
@@ -22,13 +23,17 @@ else
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
 fi
 
-# The independent MCAP reader check (ctest record.mcap_js): the official TypeScript reader and
-# protobufjs, pinned by tests/mcap_js/package-lock.json, with the machine's own node and npm.
-js_dir="$(cd "$(dirname "$0")/.." && pwd)/tests/mcap_js"
-if ! command -v npm >/dev/null; then
-  echo "install-deps: npm not found: the record.mcap_js test will fail" >&2
-elif [ "$js_dir/node_modules/.package-lock.json" -nt "$js_dir/package-lock.json" ]; then
-  echo "install-deps: tests/mcap_js/node_modules up to date"
-else
-  npm ci --prefix "$js_dir" --no-audit --no-fund
-fi
+# The independent client checks, each pinned by its package-lock.json and installed with the
+# machine's own node and npm: tests/mcap_js (ctest record.mcap_js: the official TypeScript MCAP
+# reader and protobufjs) and tests/ws_js (the live bridge: the official Foxglove WebSocket
+# client @foxglove/ws-protocol, ws and protobufjs).
+root="$(cd "$(dirname "$0")/.." && pwd)"
+for js_dir in "$root/tests/mcap_js" "$root/tests/ws_js"; do
+  if ! command -v npm >/dev/null; then
+    echo "install-deps: npm not found: the checks in ${js_dir#"$root"/} will fail" >&2
+  elif [ "$js_dir/node_modules/.package-lock.json" -nt "$js_dir/package-lock.json" ]; then
+    echo "install-deps: ${js_dir#"$root"/}/node_modules up to date"
+  else
+    npm ci --prefix "$js_dir" --no-audit --no-fund
+  fi
+done

@@ -11,7 +11,7 @@ trap 'rm -f "$include"' EXIT
 if [ "$(basename "$prog")" = teleopctl ]; then
   {
     echo "[COMMANDS]"
-    for cmd in analyze simulate launch node keygen set identify replay estop status console relay; do
+    for cmd in analyze simulate launch node keygen set identify replay estop status console relay bridge; do
       echo ".SS $cmd"
       echo ".nf"
       # roff: a line starting with . or ' is a request; a backslash is an escape.

@@ -6,6 +6,7 @@
 
 #include "common/core/version.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
+#include "supervisor/teleopctl/bridge_command.hpp"
 #include "supervisor/teleopctl/console_command.hpp"
 #include "supervisor/teleopctl/identify_command.hpp"
 #include "supervisor/teleopctl/keygen_command.hpp"
@@ -33,6 +34,7 @@ void usage(std::ostream& os) {
         "  status     the supervisor's status, --json for scripts ('teleopctl status --help')\n"
         "  console    the operator's full-screen console, live or on a replay ('--help')\n"
         "  relay      a fault-injecting relay for one direction of a node link ('--help')\n"
+        "  bridge     the live view in Foxglove: a WebSocket server on loopback ('--help')\n"
         "  help       this text\n\n"
         "options:\n"
         "  --version  print the version and exit\n"
@@ -97,7 +99,8 @@ int main(int argc, char** argv) {
         Simple{"estop", teleop::ctl::estop_usage, teleop::ctl::run_estop},
         Simple{"status", teleop::ctl::status_usage, teleop::ctl::run_status},
         Simple{"console", teleop::ctl::console_usage, teleop::ctl::run_console},
-        Simple{"relay", teleop::ctl::relay_usage, teleop::ctl::run_relay}}) {
+        Simple{"relay", teleop::ctl::relay_usage, teleop::ctl::run_relay},
+        Simple{"bridge", teleop::ctl::bridge_usage, teleop::ctl::run_bridge}}) {
     if (args[0] != c.name) continue;
     const std::vector<std::string> rest(args.begin() + 1, args.end());
     if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {
