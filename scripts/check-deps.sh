@@ -53,7 +53,7 @@ INCLUDE = re.compile(r'^\s*#\s*include\s*([<"])([^>"]+)[>"]')
 def directory_of(path):
     """The layer-table directory a repository path belongs to, or None."""
     parts = path.split("/")
-    if parts[0] == "teleop":  # generated from proto/teleop/...
+    if parts[0] in ("teleop", "foxglove"):  # generated from proto/teleop/..., proto/foxglove/...
         return "proto"
     if parts[0] in ("common", "supervisor") and len(parts) > 2:
         return parts[0] + "/" + parts[1]

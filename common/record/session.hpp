@@ -10,11 +10,27 @@
 namespace teleop::record {
 
 namespace topic {
+// Each topic's message type (teleop.v1 unless named), one channel per topic, protobuf encoded
+// with the schema (a FileDescriptorSet) embedded. log_time: the recorder's wall clock, UTC ns
+// since the epoch, when the supervisor received the message (a simulated session: the wall
+// clock at the start of the run plus simulated time); publish_time: the sender's own time (a
+// node's CLOCK_MONOTONIC sample time on the per-cycle channels, else = log_time). Sessions
+// recorded before per-cycle channels and wall-clock log times have only the batched telemetry
+// and monotonic log times; replay reads both.
 inline constexpr std::string_view kConfig = "/config";                     // v1.SystemConfig
 inline constexpr std::string_view kMasterTelemetry = "/master/telemetry";  // v1.Telemetry
 inline constexpr std::string_view kSlaveTelemetry = "/slave/telemetry";    // v1.Telemetry
-inline constexpr std::string_view kStability = "/supervisor/stability";    // v1.StabilityReport
-inline constexpr std::string_view kAlarms = "/supervisor/alarms";          // v1.Alarm
+// One message per control cycle, taken from the batched telemetry (cycles only, no flight
+// records); publish_time = the cycle's sample_time_ns, session_id set.
+inline constexpr std::string_view kMasterCycle = "/master/cycle";       // v1.CycleRecord
+inline constexpr std::string_view kSlaveCycle = "/slave/cycle";         // v1.CycleRecord
+inline constexpr std::string_view kStability = "/supervisor/stability";  // v1.StabilityReport
+inline constexpr std::string_view kAlarms = "/supervisor/alarms";        // v1.Alarm
+// Every alarm again, for Foxglove's Log panel. Alarm severity -> foxglove.Log level: INFO ->
+// INFO, WARNING -> WARNING, ACTION (the supervisor acted) -> WARNING, CRITICAL (it disengaged
+// the nodes) -> ERROR, unspecified -> UNKNOWN; timestamp = the log time; name
+// "teleop-supervisor/<side>"; message "<kind>: <message>" and " (action: <action>)" if any.
+inline constexpr std::string_view kLog = "/supervisor/log";  // foxglove.Log
 inline constexpr std::string_view kParameterChanges =
     "/supervisor/parameter_changes";                               // v1.ParameterChangeRecord
 inline constexpr std::string_view kStatus = "/supervisor/status";  // v1.SupervisorStatus
@@ -23,7 +39,28 @@ inline constexpr std::string_view kSupervisorPrefix = "/supervisor/";
 [[nodiscard]] constexpr std::string_view telemetry(bool master) noexcept {
   return master ? kMasterTelemetry : kSlaveTelemetry;
 }
+// A node's per-cycle topic.
+[[nodiscard]] constexpr std::string_view cycle(bool master) noexcept {
+  return master ? kMasterCycle : kSlaveCycle;
+}
 }  // namespace topic
+
+// MCAP Metadata records of a session (name -> key/value strings), written at start; the rt
+// records when the node's first telemetry arrives (its RtStatus: the settings in force).
+namespace metadata {
+// version ("0.1.0"), host, config_file, config_fingerprint (16 hex digits), recorder
+// ("teleop-supervisor" or "teleopctl simulate"), started_utc (ISO 8601), clock ("wall").
+inline constexpr std::string_view kTeleop = "teleop";
+// The stability analysis at start: verdict, min_damping_ratio, required_damping_ratio,
+// round_trip_samples, sample_rate_hz, fixture stiffnesses and their largest stable values.
+inline constexpr std::string_view kAnalysis = "teleop.analysis";
+// fifo_priority, memory_locked, cpu, cpu_dma_latency_us, refused ("; "-joined).
+inline constexpr std::string_view kRtMaster = "teleop.rt.master";
+inline constexpr std::string_view kRtSlave = "teleop.rt.slave";
+}  // namespace metadata
+
+// The configuration file as it was read, an MCAP Attachment (media type text/plain).
+inline constexpr std::string_view kConfigAttachment = "config.textproto";
 
 // Where a session's messages go (the MCAP session file; tests capture them).
 class SessionSink {
