@@ -22,8 +22,8 @@ inline constexpr std::string_view kMasterTelemetry = "/master/telemetry";  // v1
 inline constexpr std::string_view kSlaveTelemetry = "/slave/telemetry";    // v1.Telemetry
 // One message per control cycle, taken from the batched telemetry (cycles only, no flight
 // records); publish_time = the cycle's sample_time_ns, session_id set.
-inline constexpr std::string_view kMasterCycle = "/master/cycle";       // v1.CycleRecord
-inline constexpr std::string_view kSlaveCycle = "/slave/cycle";         // v1.CycleRecord
+inline constexpr std::string_view kMasterCycle = "/master/cycle";        // v1.CycleRecord
+inline constexpr std::string_view kSlaveCycle = "/slave/cycle";          // v1.CycleRecord
 inline constexpr std::string_view kStability = "/supervisor/stability";  // v1.StabilityReport
 inline constexpr std::string_view kAlarms = "/supervisor/alarms";        // v1.Alarm
 // Every alarm again, for Foxglove's Log panel. Alarm severity -> foxglove.Log level: INFO ->
