@@ -378,28 +378,8 @@ bool McapWriter::close() {
     }
   });
 
-  group(Op::kAttachmentIndex, [&] {
-    for (const AttachmentIndexEntry& a : attachment_indexes_) {
-      const std::size_t at = mcap::begin_record(tail, Op::kAttachmentIndex);
-      put<std::uint64_t>(tail, a.offset);
-      put<std::uint64_t>(tail, a.length);
-      put<std::uint64_t>(tail, a.log_time);
-      put<std::uint64_t>(tail, a.create_time);
-      put<std::uint64_t>(tail, a.data_size);
-      mcap::put_string(tail, a.name);
-      mcap::put_string(tail, a.media_type);
-      mcap::end_record(tail, at);
-    }
-  });
-  group(Op::kMetadataIndex, [&] {
-    for (const MetadataIndexEntry& m : metadata_indexes_) {
-      const std::size_t at = mcap::begin_record(tail, Op::kMetadataIndex);
-      put<std::uint64_t>(tail, m.offset);
-      put<std::uint64_t>(tail, m.length);
-      mcap::put_string(tail, m.name);
-      mcap::end_record(tail, at);
-    }
-  });
+  group(Op::kAttachmentIndex, [&] { put_attachment_indexes(tail); });
+  group(Op::kMetadataIndex, [&] { put_metadata_indexes(tail); });
 
   const std::uint64_t summary_offset_start = file_size_ + tail.size();
   for (const Group& g : groups) {
@@ -426,6 +406,30 @@ bool McapWriter::close() {
   fd_ = -1;
   if (::close(fd) != 0) return fail("close", errno);
   return true;
+}
+
+void McapWriter::put_attachment_indexes(std::string& out) const {
+  for (const AttachmentIndexEntry& a : attachment_indexes_) {
+    const std::size_t at = mcap::begin_record(out, Op::kAttachmentIndex);
+    put<std::uint64_t>(out, a.offset);
+    put<std::uint64_t>(out, a.length);
+    put<std::uint64_t>(out, a.log_time);
+    put<std::uint64_t>(out, a.create_time);
+    put<std::uint64_t>(out, a.data_size);
+    mcap::put_string(out, a.name);
+    mcap::put_string(out, a.media_type);
+    mcap::end_record(out, at);
+  }
+}
+
+void McapWriter::put_metadata_indexes(std::string& out) const {
+  for (const MetadataIndexEntry& m : metadata_indexes_) {
+    const std::size_t at = mcap::begin_record(out, Op::kMetadataIndex);
+    put<std::uint64_t>(out, m.offset);
+    put<std::uint64_t>(out, m.length);
+    mcap::put_string(out, m.name);
+    mcap::end_record(out, at);
+  }
 }
 
 bool McapWriter::write_out(std::initializer_list<std::string_view> parts) {

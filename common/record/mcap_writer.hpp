@@ -180,6 +180,9 @@ class McapWriter {
   };
   // A record outside chunks: written after the open chunk, its CRC folded into the data CRC.
   [[nodiscard]] bool write_record(const std::string& record);
+  // The summary's Attachment Index and Metadata Index records.
+  void put_attachment_indexes(std::string& out) const;
+  void put_metadata_indexes(std::string& out) const;
 
   std::vector<ChunkIndexEntry> chunk_indexes_{};
   std::vector<MetadataIndexEntry> metadata_indexes_{};

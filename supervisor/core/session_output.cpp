@@ -98,8 +98,12 @@ std::map<std::string, std::string> teleop_metadata(const config::LoadedConfig& c
   m["config_overrides"] = overrides;
   m["recorder"] = std::string(recorder);
   m["started_utc"] = utc_iso8601(start_utc_ns);
-  m["log_time"] = "wall clock (CLOCK_REALTIME), UTC ns since the epoch, on receipt";
-  m["publish_time"] = "per-cycle channels: the node's CLOCK_MONOTONIC sample time; else log_time";
+  m["log_time"] =
+      "UTC ns since the epoch: the wall clock on receipt (teleop-supervisor), or the run's start "
+      "plus simulated time (teleopctl simulate)";
+  m["publish_time"] =
+      "per-cycle channels: the node's sample time (its CLOCK_MONOTONIC; simulated time in a "
+      "simulation); other channels: = log_time";
   return m;
 }
 
