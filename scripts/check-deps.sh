@@ -33,7 +33,7 @@ LAYERS = [
     ["common/sim"],
     ["common/device"],
     ["common/scene", "common/node"],
-    ["common/config"],
+    ["common/config", "common/telemetry"],
     ["common/runtime", "common/session"],
     ["supervisor/core"],
     ["supervisor/daemon", "supervisor/teleopctl", "master_node", "slave_node"],

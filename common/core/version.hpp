@@ -1,15 +1,13 @@
-// teleop's version: the project version CMake was configured with (CMakeLists.txt `project`).
-// `--version` of every program prints it, and a recorded session names it. The number comes
-// from a header CMake generates (common/core/version_number.hpp.in), so that only the files that
-// include this one see it.
+// The project's version (CMakeLists.txt `project(teleop VERSION ...)`), compiled in once
+// (version.cpp.in, configured by CMake): session files name it in their MCAP header and
+// metadata.
 #pragma once
 
 #include <string_view>
 
-#include "common/core/version_number.hpp"  // generated in the build tree
-
 namespace teleop {
 
-inline constexpr std::string_view kVersion = TELEOP_VERSION;
+// "0.1.0".
+[[nodiscard]] std::string_view version() noexcept;
 
 }  // namespace teleop

@@ -103,6 +103,60 @@ bool McapWriter::write(std::uint16_t channel_id, std::uint64_t log_time_ns, std:
 }
 
 bool McapWriter::write(std::uint16_t channel_id, std::uint64_t log_time_ns,
+                       std::uint64_t publish_time_ns, std::string_view data) {
+  if (channel_id == 0 || channel_id > channels_.size()) {
+    throw std::invalid_argument(describe(path_) + ": unknown channel id " +
+                                std::to_string(channel_id));
+  }
+  const std::uint32_t sequence = channels_[channel_id - 1u].next_sequence;
+  return write(channel_id, log_time_ns, publish_time_ns, sequence, data);
+}
+
+bool McapWriter::write_record(const std::string& record) {
+  if (closed_) throw std::logic_error(describe(path_) + ": write after close");
+  if (!ok() || !flush_chunk()) return false;
+  const std::uint32_t crc_before = data_crc_;
+  if (!write_out({record})) return false;
+  data_crc_ = mcap::crc32(crc_before, record);
+  return true;
+}
+
+bool McapWriter::write_metadata(const std::string& name,
+                                const std::map<std::string, std::string>& values) {
+  std::string record;
+  const std::size_t at = mcap::begin_record(record, Op::kMetadata);
+  mcap::put_string(record, name);
+  mcap::put_string_map(record, values);
+  mcap::end_record(record, at);
+  if (!ok() || !flush_chunk()) return false;
+  const std::uint64_t offset = file_size_;
+  if (!write_record(record)) return false;
+  metadata_indexes_.push_back({offset, record.size(), name});
+  return true;
+}
+
+bool McapWriter::write_attachment(const AttachmentDef& a) {
+  std::string record;
+  const std::size_t at = mcap::begin_record(record, Op::kAttachment);
+  put<std::uint64_t>(record, a.log_time_ns);
+  put<std::uint64_t>(record, a.create_time_ns);
+  mcap::put_string(record, a.name);
+  mcap::put_string(record, a.media_type);
+  put<std::uint64_t>(record, a.data.size());
+  record.append(a.data);
+  // The CRC covers every field before it: from log_time to the end of data.
+  const std::uint32_t crc = mcap::crc32(0, std::string_view{record}.substr(at + 8));
+  put<std::uint32_t>(record, crc);
+  mcap::end_record(record, at);
+  if (!ok() || !flush_chunk()) return false;
+  const std::uint64_t offset = file_size_;
+  if (!write_record(record)) return false;
+  attachment_indexes_.push_back({offset, record.size(), a.log_time_ns, a.create_time_ns,
+                                 a.data.size(), a.name, a.media_type});
+  return true;
+}
+
+bool McapWriter::write(std::uint16_t channel_id, std::uint64_t log_time_ns,
                        std::uint64_t publish_time_ns, std::uint32_t sequence,
                        std::string_view data) {
   if (closed_) throw std::logic_error(describe(path_) + ": write after close");
@@ -292,8 +346,8 @@ bool McapWriter::close() {
     put<std::uint64_t>(tail, messages_written_);
     put<std::uint16_t>(tail, static_cast<std::uint16_t>(schemas_.size()));
     put<std::uint32_t>(tail, static_cast<std::uint32_t>(channels_.size()));
-    put<std::uint32_t>(tail, 0);  // attachments
-    put<std::uint32_t>(tail, 0);  // metadata
+    put<std::uint32_t>(tail, static_cast<std::uint32_t>(attachment_indexes_.size()));
+    put<std::uint32_t>(tail, static_cast<std::uint32_t>(metadata_indexes_.size()));
     put<std::uint32_t>(tail, static_cast<std::uint32_t>(chunk_indexes_.size()));
     put<std::uint64_t>(tail, start_time_);
     put<std::uint64_t>(tail, end_time_);
@@ -324,6 +378,9 @@ bool McapWriter::close() {
     }
   });
 
+  group(Op::kAttachmentIndex, [&] { put_attachment_indexes(tail); });
+  group(Op::kMetadataIndex, [&] { put_metadata_indexes(tail); });
+
   const std::uint64_t summary_offset_start = file_size_ + tail.size();
   for (const Group& g : groups) {
     const std::size_t at = mcap::begin_record(tail, Op::kSummaryOffset);
@@ -349,6 +406,30 @@ bool McapWriter::close() {
   fd_ = -1;
   if (::close(fd) != 0) return fail("close", errno);
   return true;
+}
+
+void McapWriter::put_attachment_indexes(std::string& out) const {
+  for (const AttachmentIndexEntry& a : attachment_indexes_) {
+    const std::size_t at = mcap::begin_record(out, Op::kAttachmentIndex);
+    put<std::uint64_t>(out, a.offset);
+    put<std::uint64_t>(out, a.length);
+    put<std::uint64_t>(out, a.log_time);
+    put<std::uint64_t>(out, a.create_time);
+    put<std::uint64_t>(out, a.data_size);
+    mcap::put_string(out, a.name);
+    mcap::put_string(out, a.media_type);
+    mcap::end_record(out, at);
+  }
+}
+
+void McapWriter::put_metadata_indexes(std::string& out) const {
+  for (const MetadataIndexEntry& m : metadata_indexes_) {
+    const std::size_t at = mcap::begin_record(out, Op::kMetadataIndex);
+    put<std::uint64_t>(out, m.offset);
+    put<std::uint64_t>(out, m.length);
+    mcap::put_string(out, m.name);
+    mcap::end_record(out, at);
+  }
 }
 
 bool McapWriter::write_out(std::initializer_list<std::string_view> parts) {

@@ -39,6 +39,15 @@ struct ChannelDef {
   std::map<std::string, std::string> metadata{};
 };
 
+// An Attachment record: a file embedded in the session (e.g. the configuration as read).
+struct AttachmentDef {
+  std::uint64_t log_time_ns{0};
+  std::uint64_t create_time_ns{0};
+  std::string name{};
+  std::string media_type{};
+  std::string data{};
+};
+
 struct WriterOptions {
   std::string profile{};
   std::string library{"teleop-record"};
@@ -70,9 +79,18 @@ class McapWriter {
   // the file (see error()). Throws std::invalid_argument for an unknown channel id.
   [[nodiscard]] bool write(std::uint16_t channel_id, std::uint64_t log_time_ns,
                            std::string_view data);
+  // The same with the sender's publish time.
+  [[nodiscard]] bool write(std::uint16_t channel_id, std::uint64_t log_time_ns,
+                           std::uint64_t publish_time_ns, std::string_view data);
   [[nodiscard]] bool write(std::uint16_t channel_id, std::uint64_t log_time_ns,
                            std::uint64_t publish_time_ns, std::uint32_t sequence,
                            std::string_view data);
+  // A Metadata record (name and key/value strings) or an Attachment record, in the data section
+  // between chunks (the open chunk is flushed first), indexed in the summary (Metadata Index,
+  // Attachment Index) and counted in Statistics. False once an I/O error stopped the file.
+  [[nodiscard]] bool write_metadata(const std::string& name,
+                                    const std::map<std::string, std::string>& values);
+  [[nodiscard]] bool write_attachment(const AttachmentDef& attachment);
   // Flushes the open chunk if its oldest message is older than max_chunk_age.
   [[nodiscard]] bool poll();
   // Flushes the open chunk now.
@@ -146,7 +164,29 @@ class McapWriter {
   std::string header_buffer_{};
   std::string index_buffer_{};
 
+  struct MetadataIndexEntry {
+    std::uint64_t offset{0};
+    std::uint64_t length{0};
+    std::string name{};
+  };
+  struct AttachmentIndexEntry {
+    std::uint64_t offset{0};
+    std::uint64_t length{0};
+    std::uint64_t log_time{0};
+    std::uint64_t create_time{0};
+    std::uint64_t data_size{0};
+    std::string name{};
+    std::string media_type{};
+  };
+  // A record outside chunks: written after the open chunk, its CRC folded into the data CRC.
+  [[nodiscard]] bool write_record(const std::string& record);
+  // The summary's Attachment Index and Metadata Index records.
+  void put_attachment_indexes(std::string& out) const;
+  void put_metadata_indexes(std::string& out) const;
+
   std::vector<ChunkIndexEntry> chunk_indexes_{};
+  std::vector<MetadataIndexEntry> metadata_indexes_{};
+  std::vector<AttachmentIndexEntry> attachment_indexes_{};
   std::uint64_t messages_written_{0};
   std::uint64_t message_bytes_written_{0};
   std::uint64_t start_time_{0};

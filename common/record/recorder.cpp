@@ -25,7 +25,10 @@ std::uint16_t Recorder::add_schema(SchemaDef schema) {
       throw std::invalid_argument("Recorder: more than 65535 schemas");
     }
     id = ++schema_count_;
-    registrations_.push_back(Registration{true, std::move(schema), {}});
+    Registration r;
+    r.kind = Registration::Kind::kSchema;
+    r.schema = std::move(schema);
+    registrations_.push_back(std::move(r));
   }
   wake_.notify_one();
   return id;
@@ -43,7 +46,10 @@ std::uint16_t Recorder::add_channel(ChannelDef channel) {
                                   "' names unknown schema id " + std::to_string(channel.schema_id));
     }
     id = ++channel_count_;
-    registrations_.push_back(Registration{false, {}, std::move(channel)});
+    Registration r;
+    r.kind = Registration::Kind::kChannel;
+    r.channel = std::move(channel);
+    registrations_.push_back(std::move(r));
     // Published after the registration is queued: a message on this id always queues after it.
     channels_known_.store(id, std::memory_order_release);
   }
@@ -51,22 +57,68 @@ std::uint16_t Recorder::add_channel(ChannelDef channel) {
   return id;
 }
 
+void Recorder::metadata(std::string name, std::map<std::string, std::string> values) {
+  Registration r;
+  r.kind = Registration::Kind::kMetadata;
+  r.metadata_name = std::move(name);
+  r.metadata = std::move(values);
+  register_record(std::move(r));
+}
+
+void Recorder::attachment(AttachmentDef attachment) {
+  Registration r;
+  r.kind = Registration::Kind::kAttachment;
+  r.attachment = std::move(attachment);
+  register_record(std::move(r));
+}
+
+void Recorder::register_record(Registration r) {
+  {
+    const std::lock_guard lock(mutex_);
+    if (stop_) return;
+    registrations_.push_back(std::move(r));
+  }
+  wake_.notify_one();
+}
+
+void Recorder::apply(Registration& r) {
+  switch (r.kind) {
+    case Registration::Kind::kSchema:
+      (void)writer_->add_schema(std::move(r.schema));
+      break;
+    case Registration::Kind::kChannel:
+      (void)writer_->add_channel(std::move(r.channel));
+      break;
+    case Registration::Kind::kMetadata:
+      (void)writer_->write_metadata(r.metadata_name, r.metadata);
+      break;
+    case Registration::Kind::kAttachment:
+      (void)writer_->write_attachment(r.attachment);
+      break;
+  }
+}
+
 bool Recorder::record(std::uint16_t channel_id, std::uint64_t log_time_ns, std::string_view bytes) {
-  return enqueue(channel_id, log_time_ns, bytes);
+  return enqueue(channel_id, log_time_ns, log_time_ns, bytes);
 }
 
 bool Recorder::record(std::uint16_t channel_id, std::uint64_t log_time_ns,
                       std::span<const std::byte> bytes) {
-  return enqueue(channel_id, log_time_ns,
+  return enqueue(channel_id, log_time_ns, log_time_ns,
                  std::string_view(reinterpret_cast<const char*>(bytes.data()), bytes.size()));
 }
 
+bool Recorder::record(std::uint16_t channel_id, std::uint64_t log_time_ns,
+                      std::uint64_t publish_time_ns, std::string_view bytes) {
+  return enqueue(channel_id, log_time_ns, publish_time_ns, bytes);
+}
+
 namespace {
-constexpr std::size_t kEntryHead = 2 + 8 + 4;  // channel, log time, size
+constexpr std::size_t kEntryHead = 2 + 8 + 8 + 4;  // channel, log time, publish time, size
 }  // namespace
 
 bool Recorder::enqueue(std::uint16_t channel_id, std::uint64_t log_time_ns,
-                       std::string_view bytes) {
+                       std::uint64_t publish_time_ns, std::string_view bytes) {
   if (closed_.load(std::memory_order_acquire) || failed_.load(std::memory_order_acquire) ||
       channel_id == 0 || channel_id > channels_known_.load(std::memory_order_acquire) ||
       bytes.size() > std::numeric_limits<std::uint32_t>::max()) {
@@ -83,7 +135,8 @@ bool Recorder::enqueue(std::uint16_t channel_id, std::uint64_t log_time_ns,
   const auto size = static_cast<std::uint32_t>(bytes.size());
   std::memcpy(head, &channel_id, 2);
   std::memcpy(head + 2, &log_time_ns, 8);
-  std::memcpy(head + 10, &size, 4);
+  std::memcpy(head + 10, &publish_time_ns, 8);
+  std::memcpy(head + 18, &size, 4);
   bool was_empty = false;
   {
     const std::lock_guard lock(mutex_);
@@ -174,24 +227,21 @@ void Recorder::run() {
     std::string failure;
     std::uint64_t done = 0;
     try {
-      for (Registration& r : registrations) {
-        if (r.is_schema) {
-          (void)writer_->add_schema(std::move(r.schema));
-        } else {
-          (void)writer_->add_channel(std::move(r.channel));
-        }
-      }
+      for (Registration& r : registrations) apply(r);
       std::size_t pos = 0;
       while (writer_->ok() && done < batch_messages) {
         std::uint16_t channel_id = 0;
         std::uint64_t log_time_ns = 0;
+        std::uint64_t publish_time_ns = 0;
         std::uint32_t size = 0;
         std::memcpy(&channel_id, batch.data() + pos, 2);
         std::memcpy(&log_time_ns, batch.data() + pos + 2, 8);
-        std::memcpy(&size, batch.data() + pos + 10, 4);
+        std::memcpy(&publish_time_ns, batch.data() + pos + 10, 8);
+        std::memcpy(&size, batch.data() + pos + 18, 4);
         pos += kEntryHead;
         ++done;
-        if (!writer_->write(channel_id, log_time_ns, std::string_view(batch).substr(pos, size))) {
+        if (!writer_->write(channel_id, log_time_ns, publish_time_ns,
+                            std::string_view(batch).substr(pos, size))) {
           break;
         }
         pos += size;

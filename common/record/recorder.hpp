@@ -17,6 +17,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <span>
@@ -60,6 +61,14 @@ class Recorder {
                             std::string_view bytes);
   [[nodiscard]] bool record(std::uint16_t channel_id, std::uint64_t log_time_ns,
                             std::span<const std::byte> bytes);
+  // The same with the sender's publish time (the others: publish time = log time).
+  [[nodiscard]] bool record(std::uint16_t channel_id, std::uint64_t log_time_ns,
+                            std::uint64_t publish_time_ns, std::string_view bytes);
+  // A Metadata or Attachment record (McapWriter::write_metadata, write_attachment), written by
+  // the writer thread before the messages queued after it. Thread-safe; not counted as
+  // messages; lost (without a drop count) only when recording has stopped.
+  void metadata(std::string name, std::map<std::string, std::string> values);
+  void attachment(AttachmentDef attachment);
 
   // Waits until everything recorded before the call has reached the writer and the open
   // chunk's age has been checked (flush() also flushes it). For tests, shutdown paths and
@@ -88,12 +97,19 @@ class Recorder {
 
  private:
   struct Registration {
-    bool is_schema{false};
+    enum class Kind { kSchema, kChannel, kMetadata, kAttachment };
+    Kind kind{Kind::kSchema};
     SchemaDef schema{};
     ChannelDef channel{};
+    std::string metadata_name{};
+    std::map<std::string, std::string> metadata{};
+    AttachmentDef attachment{};
   };
 
-  bool enqueue(std::uint16_t channel_id, std::uint64_t log_time_ns, std::string_view bytes);
+  bool enqueue(std::uint16_t channel_id, std::uint64_t log_time_ns, std::uint64_t publish_time_ns,
+               std::string_view bytes);
+  void register_record(Registration r);
+  void apply(Registration& r);
   bool request(bool force_flush);
   void run();
   void publish_progress();
@@ -105,7 +121,8 @@ class Recorder {
   mutable std::mutex mutex_{};
   std::condition_variable wake_{};      // to the writer thread
   std::condition_variable progress_{};  // from it
-  // Queued messages packed back to back, [channel u16][log time u64][size u32][bytes]: the
+  // Queued messages packed back to back, [channel u16][log time u64][publish time u64][size
+  // u32][bytes]: the
   // writer thread swaps the whole buffer out and back, so steady state allocates nothing.
   std::string queue_{};
   std::size_t queued_messages_{0};

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <string_view>
 
@@ -69,6 +70,26 @@ class SessionSink {
   // `type` names the protobuf message type of `bytes` (its full name).
   virtual void record(std::string_view topic, const std::string& type, std::int64_t log_time_ns,
                       const std::string& bytes) = 0;
+  // The same with the sender's own time as the MCAP publish_time (record(): = log time).
+  virtual void record_published(std::string_view topic, const std::string& type,
+                                std::int64_t log_time_ns, std::int64_t publish_time_ns,
+                                const std::string& bytes) {
+    (void)publish_time_ns;
+    record(topic, type, log_time_ns, bytes);
+  }
+  // An MCAP Metadata record (names in `metadata` above) and an Attachment (e.g.
+  // kConfigAttachment); a sink that keeps no file ignores them.
+  virtual void metadata(std::string_view name, const std::map<std::string, std::string>& values) {
+    (void)name;
+    (void)values;
+  }
+  virtual void attachment(std::string_view name, std::string_view media_type,
+                          std::int64_t log_time_ns, const std::string& data) {
+    (void)name;
+    (void)media_type;
+    (void)log_time_ns;
+    (void)data;
+  }
   [[nodiscard]] virtual std::string file() const { return {}; }
   [[nodiscard]] virtual std::uint64_t recorded() const { return 0; }
   [[nodiscard]] virtual std::uint64_t drops() const { return 0; }

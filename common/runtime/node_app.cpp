@@ -19,6 +19,7 @@
 #include "common/device/sim_device.hpp"
 #include "common/rt/cpu_dma_latency.hpp"
 #include "common/runtime/command_authority.hpp"
+#include "common/telemetry/cycle_codec.hpp"
 #include "common/transport/socket_monitor.hpp"
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
@@ -31,7 +32,7 @@ namespace {
 using namespace std::chrono_literals;
 using transport::Role;
 
-v1::NodeMode to_proto(node::Mode m) { return static_cast<v1::NodeMode>(node::wire_mode(m)); }
+using telemetry::to_proto;
 v1::NodeRole to_proto(Role r) {
   return r == Role::kMaster ? v1::MASTER
                             : (r == Role::kSlave ? v1::SLAVE : v1::NODE_ROLE_UNSPECIFIED);
@@ -164,26 +165,6 @@ struct LinkCounters {
       rejected{};
   std::atomic<std::uint64_t> lost{0};
 };
-
-void fill_cycle(v1::CycleRecord& c, const node::CycleRecord& rec) {
-  c.set_sequence(rec.sequence);
-  c.set_sample_time_ns(rec.sample_time_ns);
-  c.set_mode(to_proto(rec.mode));
-  c.set_position_m(rec.position_m);
-  c.set_velocity_m_per_s(rec.velocity_m_per_s);
-  c.set_force_n(rec.force_N);
-  c.set_command_n(rec.command_N);
-  c.set_peer_sequence(rec.peer_sequence);
-  c.set_peer_position_m(rec.peer_position_m);
-  c.set_peer_age_ns(rec.peer_age_ns);
-  c.set_coupling_weight(rec.coupling_weight);
-  c.set_flags(rec.flags);
-  c.set_wakeup_latency_ns(rec.wakeup_latency_ns);
-  c.set_round_trip_ns(rec.round_trip_ns);
-  c.set_master_sequence(rec.master_sequence);
-  c.set_parameter_change_id(rec.parameter_change_id);
-  c.set_alignment_error_m(rec.alignment_error_m);
-}
 
 void fill_active(v1::ActiveParameters& a, const node::ActiveLaw& active) {
   a.set_change_id(active.change_id);
@@ -636,7 +617,7 @@ void NodeApp::run_telemetry_publisher() {
     t.set_device(setup_.device_kind == device::DeviceKind::kSim ? "sim" : "usb");
     while (const auto rec = core.telemetry_out().try_pop()) {
       v1::CycleRecord* c = t.add_cycles();
-      fill_cycle(*c, *rec);
+      to_proto(*rec, *c);
       if (rec->mode != last_mode) {
         spdlog::info("{} -> {} ({})", node::to_string(last_mode), node::to_string(rec->mode),
                      rec->reason);

@@ -97,7 +97,7 @@ int run_node_main(transport::Role role, int argc, char** argv) {
         return 0;
       }
       if (a == "--version") {
-        std::cout << name << " " << kVersion << "\n";
+        std::cout << name << " " << version() << "\n";
         return 0;
       }
       if (a == "--set") {

@@ -8,13 +8,12 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/telemetry/cycle_codec.hpp"
+
 namespace teleop::record {
 namespace {
 
 namespace pb = google::protobuf;
-
-// node::Mode of a teleop.v1.NodeMode (node_state_machine.hpp); unspecified or unknown: disarmed.
-node::Mode to_mode(v1::NodeMode wire) { return node::mode_from_wire(static_cast<int>(wire)); }
 
 template <typename T>
 std::vector<Stamped<T>> stamped_on(const SessionReader& session, std::string_view topic) {
@@ -135,7 +134,7 @@ std::vector<RecordedCycle> SessionReader::cycles(bool master) const {
   std::vector<RecordedCycle> cycles;
   for_each_telemetry(master, [&](std::uint64_t, const v1::Telemetry& t) {
     for (const v1::CycleRecord& c : t.cycles()) {
-      cycles.push_back({t.session_id(), to_cycle_record(c)});
+      cycles.push_back({t.session_id(), telemetry::from_proto(c)});
     }
   });
   return cycles;
@@ -155,28 +154,6 @@ std::vector<Stamped<v1::ParameterChangeRecord>> SessionReader::parameter_changes
 
 std::vector<Stamped<v1::SupervisorStatus>> SessionReader::statuses() const {
   return stamped_on<v1::SupervisorStatus>(*this, topic::kStatus);
-}
-
-node::CycleRecord to_cycle_record(const v1::CycleRecord& c) {
-  node::CycleRecord r;
-  r.sequence = c.sequence();
-  r.sample_time_ns = c.sample_time_ns();
-  r.mode = to_mode(c.mode());
-  r.position_m = c.position_m();
-  r.velocity_m_per_s = c.velocity_m_per_s();
-  r.force_N = c.force_n();
-  r.command_N = c.command_n();
-  r.peer_sequence = c.peer_sequence();
-  r.peer_position_m = c.peer_position_m();
-  r.peer_age_ns = c.peer_age_ns();
-  r.coupling_weight = c.coupling_weight();
-  r.flags = c.flags();
-  r.wakeup_latency_ns = c.wakeup_latency_ns();
-  r.round_trip_ns = c.round_trip_ns();
-  r.master_sequence = c.master_sequence();
-  r.parameter_change_id = c.parameter_change_id();
-  r.alignment_error_m = c.alignment_error_m();
-  return r;
 }
 
 std::optional<config::LoadedConfig> recorded_config(const SessionReader& session,

@@ -37,9 +37,9 @@ struct Stamped {
 };
 
 // One control cycle as a node recorded it: the node's own record type (node_core.hpp), decoded
-// from teleop.v1.CycleRecord, with the session of the Telemetry message that carried it. The
-// record's `reason` is not recorded per cycle (""); a mode this version does not know (or none)
-// reads as disarmed.
+// from teleop.v1.CycleRecord by the one decoder (common/telemetry/cycle_codec.hpp), with the
+// session of the Telemetry message that carried it. The record's `reason` is not recorded per cycle
+// (""); a mode this version does not know (or none) reads as disarmed.
 struct RecordedCycle {
   std::uint64_t session_id{0};
   node::CycleRecord cycle{};
@@ -108,9 +108,6 @@ class SessionReader {
 
   McapReader reader_;
 };
-
-// The node's cycle record of a recorded teleop.v1.CycleRecord (reason "").
-[[nodiscard]] node::CycleRecord to_cycle_record(const v1::CycleRecord& c);
 
 // The recorded configuration with `overrides` (`--set PATH=VALUE`) applied and validated
 // (config_loader.hpp; messages name "FILE (/config)"); nullopt when the session has no /config,

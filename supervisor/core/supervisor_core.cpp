@@ -10,6 +10,7 @@
 #include "common/core/defaults.hpp"
 #include "supervisor/core/configuration_check.hpp"
 #include "supervisor/core/report.hpp"
+#include "supervisor/core/session_output.hpp"
 
 namespace teleop::supervisor {
 namespace {
@@ -66,7 +67,15 @@ SupervisorCore::SupervisorCore(config::CompiledSystem system, SupervisorOptions 
 // --- messages out ----------------------------------------------------------------------------
 void SupervisorCore::record(std::string_view topic, const google::protobuf::Message& m) {
   if (!opts_.sink) return;
-  opts_.sink->record(topic, m.GetDescriptor()->full_name(), now_ns_, m.SerializeAsString());
+  opts_.sink->record(topic, m.GetDescriptor()->full_name(), log_time_ns(), m.SerializeAsString());
+}
+
+void SupervisorCore::record_start() {
+  if (!opts_.sink) return;
+  record_session_start(*opts_.sink, loaded_, opts_.config_text, report_, "teleop-supervisor",
+                       log_time_ns());
+  master_.rt_recorded = false;
+  slave_.rt_recorded = false;
 }
 
 std::optional<v1::NodeCommandReply> SupervisorCore::command(Side side, v1::NodeCommand::Kind kind) {
@@ -127,6 +136,7 @@ void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind
   while (recent_alarms_.size() > 50) recent_alarms_.pop_back();
   ports_.alarm(a);
   record(record::topic::kAlarms, a);
+  record(record::topic::kLog, to_foxglove_log(a, log_time_ns()));
   std::string ev;
   for (const auto& [name, value, unit] : evidence) {
     ev += fmt::format(" {}={:.6g}{}", name, value, unit);
@@ -145,6 +155,7 @@ void SupervisorCore::start(std::int64_t now_ns) {
   now_ns_ = now_ns;
   record(record::topic::kConfig, system_.source().config);
   publish_report("start");
+  record_start();
   // Recording was asked for and could not start: said once, loudly, at start.
   if (!opts_.sink && !opts_.record_failure.empty()) {
     alarm(v1::Alarm::CRITICAL, "recorder", "system",
@@ -321,6 +332,14 @@ void SupervisorCore::on_telemetry(Side side, const v1::Telemetry& t, std::int64_
   }
   n.summary->add(t, now_ns);
   record(record::topic::telemetry(is_master), t);
+  if (opts_.sink) {
+    record_cycles(*opts_.sink, is_master, t, log_time_ns());
+    if (!n.rt_recorded && t.has_rt()) {
+      opts_.sink->metadata(is_master ? record::metadata::kRtMaster : record::metadata::kRtSlave,
+                           rt_metadata(t.rt()));
+      n.rt_recorded = true;
+    }
+  }
 }
 
 // Any parameter in force that this supervisor did not approve (a RETUNE that reached a node
@@ -513,6 +532,7 @@ void SupervisorCore::set_recording(bool on, v1::SupervisorReply& reply) {
   recorder_failure_announced_ = false;
   record(record::topic::kConfig, system_.source().config);
   record(record::topic::kStability, report_);
+  record_start();
   alarm(v1::Alarm::INFO, "command", "system", "recording started: " + opts_.sink->file(), {});
 }
 

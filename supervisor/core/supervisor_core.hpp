@@ -63,6 +63,13 @@ struct SupervisorOptions {
   // The supervisor then supervises without recording and raises a CRITICAL alarm at start.
   std::string record_failure{};
   std::uint32_t pid{0};  // reported in status
+  // Added to the core's clock for the log time of what it records: the daemon gives
+  // CLOCK_REALTIME - CLOCK_MONOTONIC at start, so session log times are UTC (0: the core's
+  // clock, as tests drive it).
+  std::int64_t log_time_offset_ns{0};
+  // The configuration file as read, attached to each session file ("": the loaded
+  // configuration in text format).
+  std::string config_text{};
 };
 
 // Timings of the supervisor's own checks.
@@ -137,6 +144,7 @@ class SupervisorCore {
     std::string unapproved{};
     std::int64_t unapproved_estop_ns{0};
     std::uint64_t newest_change_seen{0};  // this session's
+    bool rt_recorded{false};              // its RT settings in the session file's metadata
   };
   // A monitor's finding on one node at one check.
   struct Finding {
@@ -153,6 +161,10 @@ class SupervisorCore {
 
   // supervisor_core.cpp: messages out, telemetry, changes, requests, status.
   void record(std::string_view topic, const google::protobuf::Message& m);
+  // The log time of what is recorded now (the core's clock + log_time_offset_ns).
+  [[nodiscard]] std::int64_t log_time_ns() const { return now_ns_ + opts_.log_time_offset_ns; }
+  // Metadata and the configuration attachment, at the start of each session file.
+  void record_start();
   std::optional<v1::NodeCommandReply> command(Side side, v1::NodeCommand::Kind kind);
   [[nodiscard]] std::uint64_t master_sequence() const;
   [[nodiscard]] v1::StabilityReport make_report(const Assessment& a,

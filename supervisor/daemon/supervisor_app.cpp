@@ -22,6 +22,7 @@
 #include "common/transport/zap_handler.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
+#include "supervisor/core/session_output.hpp"
 #include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
@@ -49,8 +50,11 @@ struct SupervisorApp::Impl final : SupervisorPorts {
                           loaded.config.supervisor().secret_key_file()))),
         core(std::move(system), with_pid(std::move(options)), *this) {}
 
+  // The process id, and the offset that puts the session's log times on the wall clock (UTC):
+  // the core's clock is CLOCK_MONOTONIC (monotonic_ns()).
   static SupervisorOptions with_pid(SupervisorOptions o) {
     o.pid = static_cast<std::uint32_t>(::getpid());
+    o.log_time_offset_ns = wall_clock_ns() - monotonic_ns();
     return o;
   }
 

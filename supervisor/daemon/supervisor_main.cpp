@@ -7,8 +7,10 @@
 #include <atomic>
 #include <chrono>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <optional>
+#include <sstream>
 #include <thread>
 
 #include "common/core/command_line.hpp"
@@ -34,6 +36,15 @@ void usage(std::ostream& os) {
         "  --version         print the version and exit\n"
         "  -h, --help        this text\n\n"
         "An option's value may also follow an '=' (--record-dir=DIR).\n";
+}
+
+// The configuration file as read, for the session's attachment ("" when it cannot be read
+// again: the core then attaches the loaded configuration).
+std::string read_config_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return in ? text.str() : std::string();
 }
 
 // The session file and the log file in `dir`. A directory that cannot be created or written
@@ -76,7 +87,7 @@ std::optional<int> parse_args(const std::vector<std::string>& args, SupervisorAr
         return 0;
       }
       if (a == "--version") {
-        std::cout << "teleop-supervisor " << kVersion << "\n";
+        std::cout << "teleop-supervisor " << version() << "\n";
         return 0;
       }
       if (a == "--set") {
@@ -135,6 +146,7 @@ int run_supervisor_main(int argc, char** argv) {
     const std::filesystem::path dir =
         record_dir ? *record_dir : (s.record_dir().empty() ? "." : s.record_dir());
     SupervisorOptions options;
+    options.config_text = read_config_text(config_path);
     std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
     options.record_dir = dir.string();
     options.new_sink = [dir] {

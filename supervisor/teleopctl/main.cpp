@@ -52,7 +52,7 @@ int main(int argc, char** argv) {
     return args.empty() ? teleop::ctl::kExitUsage : 0;
   }
   if (args[0] == "--version" || args[0] == "version") {
-    std::cout << "teleopctl " << teleop::kVersion << "\n";
+    std::cout << "teleopctl " << teleop::version() << "\n";
     return 0;
   }
   if (args[0] == "analyze") {

@@ -8,6 +8,7 @@
 #include <map>
 #include <nlohmann/json.hpp>
 #include <ostream>
+#include <sstream>
 #include <string_view>
 
 #include "common/config/scene_loader.hpp"
@@ -16,9 +17,11 @@
 #include "common/record/mcap_writer.hpp"
 #include "common/record/proto_schema.hpp"
 #include "common/record/session.hpp"
+#include "common/record/session_recorder.hpp"
 #include "common/scene/lockstep.hpp"
 #include "common/stability/analyzer.hpp"
 #include "supervisor/core/report.hpp"
+#include "supervisor/core/session_output.hpp"
 #include "supervisor/core/stability_guard.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
@@ -88,10 +91,13 @@ constexpr std::size_t kCyclesPerMessage = 20;
   return cfg.human ? t.output.human_force_N : t.output.environment_force_N;
 }
 
-// The lockstep rows as a live session would have recorded them (session_recorder.cpp's
-// topics and types): /config, /supervisor/stability at log time 0, then /master/telemetry and
+// The lockstep rows as a live session would have recorded them (common/record/session.hpp's
+// topics, types and conventions): /config, /supervisor/stability, the metadata and the
+// configuration attachment at the session's start, then /master/telemetry and
 // /slave/telemetry, kCyclesPerMessage cycles per message, logged at the end of the last cycle's
-// period (simulated time).
+// period, and each cycle on /master/cycle and /slave/cycle (supervisor/core/session_output.hpp).
+// Log times are the start (the wall clock when the run began, or --log-start-ns) plus
+// simulated time; the cycles' sample times (publish_time) are simulated time from 0.
 //
 // Cycle k (sequence k + 1, sample time k T) is what each node's law saw at its sample k: the
 // row's *_sensed_m; the force on its load cell then, which the row before carries (the true
@@ -99,47 +105,66 @@ constexpr std::size_t kCyclesPerMessage = 20;
 // from the sensed positions; the command it wrote, held over [kT, (k+1)T) (the master's
 // actuator is driven by -F_am); the peer state of that sample: the slave's at once, the
 // master's round_trip_delay_samples late.
-// The session file's channels, one schema per type as the live recorder keeps them.
-class SessionFile {
+// The session file: a SessionSink over a synchronous McapWriter, one schema per type.
+class SessionFile final : public record::SessionSink {
  public:
-  explicit SessionFile(const std::string& path) : writer_(path, writer_options()) {
-    config_ch = channel(v1::SystemConfig::descriptor(), record::topic::kConfig);
-    report_ch = channel(v1::StabilityReport::descriptor(), record::topic::kStability);
-    master_ch = channel(v1::Telemetry::descriptor(), record::topic::kMasterTelemetry);
-    slave_ch = channel(v1::Telemetry::descriptor(), record::topic::kSlaveTelemetry);
+  explicit SessionFile(const std::string& path) : path_(path), writer_(path, writer_options()) {}
+  void record(std::string_view topic, const std::string& type, std::int64_t log_time_ns,
+              const std::string& bytes) override {
+    record_published(topic, type, log_time_ns, log_time_ns, bytes);
   }
-  void write(std::uint16_t ch, std::int64_t log_time_ns, const std::string& bytes) {
-    if (!writer_.write(ch, static_cast<std::uint64_t>(log_time_ns), bytes)) {
-      throw std::runtime_error(writer_.error());
-    }
+  void record_published(std::string_view topic, const std::string& type, std::int64_t log_time_ns,
+                        std::int64_t publish_time_ns, const std::string& bytes) override {
+    check(writer_.write(channel(type, topic), static_cast<std::uint64_t>(log_time_ns),
+                        static_cast<std::uint64_t>(publish_time_ns), bytes));
   }
-  void close() {
-    if (!writer_.close()) throw std::runtime_error(writer_.error());
+  void metadata(std::string_view name, const std::map<std::string, std::string>& values) override {
+    check(writer_.write_metadata(std::string(name), values));
   }
-
-  std::uint16_t config_ch{0};
-  std::uint16_t report_ch{0};
-  std::uint16_t master_ch{0};
-  std::uint16_t slave_ch{0};
+  void attachment(std::string_view name, std::string_view media_type, std::int64_t log_time_ns,
+                  const std::string& data) override {
+    record::AttachmentDef a;
+    a.log_time_ns = static_cast<std::uint64_t>(log_time_ns);
+    a.create_time_ns = a.log_time_ns;
+    a.name = std::string(name);
+    a.media_type = std::string(media_type);
+    a.data = data;
+    check(writer_.write_attachment(a));
+  }
+  [[nodiscard]] std::string file() const override { return path_; }
+  void close() { check(writer_.close()); }
 
  private:
+  void check(bool ok) const {
+    if (!ok) throw std::runtime_error(writer_.error());
+  }
   [[nodiscard]] static record::WriterOptions writer_options() {
     record::WriterOptions options;
-    options.library = "teleop-record (teleopctl simulate)";
-    // Offline: chunks by size only, so the same scene gives the same bytes.
+    options.library = record::session_library();
+    // Offline: chunks by size only, so the same scene and start give the same bytes.
     options.max_chunk_age = std::chrono::nanoseconds::max();
     return options;
   }
-  std::uint16_t channel(const google::protobuf::Descriptor* d, std::string_view topic) {
+  std::uint16_t channel(const std::string& type, std::string_view topic) {
+    const auto known = channels_.find(std::string(topic));
+    if (known != channels_.end()) return known->second;
+    const google::protobuf::Descriptor* d =
+        google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
+    if (d == nullptr) throw std::invalid_argument("unknown message type " + type);
     auto it = schemas_.find(d);
     if (it == schemas_.end()) {
       it = schemas_.emplace(d, writer_.add_schema(record::protobuf_schema(d))).first;
     }
-    return writer_.add_channel(record::protobuf_channel(it->second, std::string(topic)));
+    const std::uint16_t id =
+        writer_.add_channel(record::protobuf_channel(it->second, std::string(topic)));
+    channels_.emplace(std::string(topic), id);
+    return id;
   }
 
+  std::string path_;
   record::McapWriter writer_;
   std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas_{};
+  std::map<std::string, std::uint16_t> channels_{};
 };
 
 // The simulation's rows by column name.
@@ -214,8 +239,17 @@ void set_cycle(v1::CycleRecord& c, std::uint64_t seq, std::int64_t time_ns, doub
   c.set_command_n(command_N);
 }
 
+// The file as read ("" when it cannot be read: the loaded configuration is attached then).
+std::string read_text_file(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return in ? text.str() : std::string();
+}
+
 void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
-                        const scene::SceneSetup& setup, const scene::SimulationResult& r) {
+                        const scene::SceneSetup& setup, const scene::SimulationResult& r,
+                        std::int64_t start_ns) {
   const SimRows sim(r);
   const std::size_t c_xm = sim.col("master_sensed_m");
   const std::size_t c_xs = sim.col("slave_sensed_m");
@@ -247,8 +281,15 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
   slave_velocity.reset(slave0);
 
   SessionFile file(path);
-  file.write(file.config_ch, 0, cfg.config.SerializeAsString());
-  file.write(file.report_ch, 0, start_report(p).SerializeAsString());
+  const auto put = [&file](std::string_view topic, std::int64_t log_time_ns,
+                           const google::protobuf::Message& m) {
+    file.record(topic, m.GetDescriptor()->full_name(), log_time_ns, m.SerializeAsString());
+  };
+  const v1::StabilityReport report = start_report(p);
+  put(record::topic::kConfig, start_ns, cfg.config);
+  put(record::topic::kStability, start_ns, report);
+  supervisor::record_session_start(file, cfg, read_text_file(cfg.source_name), report,
+                                   "teleopctl simulate", start_ns);
 
   const std::uint64_t seed = setup.seed;
   const SimulatedTelemetry frame{p,
@@ -299,8 +340,10 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
       const std::int64_t now = time_ns + period_ns;
       frame.finish(mt, true, k + 1, now);
       frame.finish(st, false, k + 1, now);
-      file.write(file.master_ch, now, mt.SerializeAsString());
-      file.write(file.slave_ch, now, st.SerializeAsString());
+      put(record::topic::kMasterTelemetry, start_ns + now, mt);
+      put(record::topic::kSlaveTelemetry, start_ns + now, st);
+      supervisor::record_cycles(file, true, mt, start_ns + now);
+      supervisor::record_cycles(file, false, st, start_ns + now);
     }
   }
   file.close();
@@ -343,10 +386,15 @@ void write_plot(const std::string& path, const scene::SimulationResult& r) {
 
 std::string simulate_usage() {
   return "usage: teleopctl simulate SCENE [--duration S] [--seed N] [--set PATH=VALUE]...\n"
-         "                          [--out FILE.csv|FILE.mcap] [--plot FILE.svg] [--json]\n\n"
+         "                          [--out FILE.csv|FILE.mcap] [--log-start-ns N]\n"
+         "                          [--plot FILE.svg] [--json]\n\n"
          "--out FILE.csv writes the time series (SI units, named columns); --out FILE.mcap a\n"
          "session file as teleop-supervisor records a live run (/config, /master/telemetry and\n"
-         "/slave/telemetry with every cycle, /supervisor/stability), for 'teleopctl replay'.\n";
+         "/slave/telemetry with every cycle, /master/cycle and /slave/cycle one message per\n"
+         "cycle, /supervisor/stability, metadata, the scene as an attachment), for 'teleopctl\n"
+         "replay', Foxglove or PlotJuggler. Its log times are the wall clock when the run began\n"
+         "plus simulated time; --log-start-ns N starts them at N instead (0: simulated time, and\n"
+         "the same bytes for the same scene).\n";
 }
 
 SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
@@ -374,6 +422,15 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
         throw UsageError(fmt::format("--seed: '{}' is not a non-negative integer", v));
       }
       o.seed = s;
+    } else if (a == "--log-start-ns" || a.rfind("--log-start-ns=", 0) == 0) {
+      const std::string v = a == "--log-start-ns" ? value("--log-start-ns") : a.substr(15);
+      long long n = 0;
+      const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
+      if (ec != std::errc{} || p != v.data() + v.size() || n < 0) {
+        throw UsageError(fmt::format(
+            "--log-start-ns: '{}' is not a non-negative integer (ns since the epoch)", v));
+      }
+      o.log_start_ns = n;
     } else if (a == "--out") {
       o.out_path = value("--out");
     } else if (a == "--plot") {
@@ -392,6 +449,8 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
 
 int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err) {
   return run_guarded("simulate", err, [&] {
+    // A session file's log times start at the wall clock of the run (before simulating).
+    const std::int64_t start_ns = o.log_start_ns ? *o.log_start_ns : supervisor::wall_clock_ns();
     std::vector<std::string> sets = o.overrides;
     if (o.duration_s) sets.push_back(fmt::format("scene.duration_s={}", *o.duration_s));
     if (o.seed) sets.push_back(fmt::format("scene.seed={}", *o.seed));
@@ -462,9 +521,9 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
         // The session carries every cycle: the same run at full rate (deterministic).
         scene::SceneSetup full = setup;
         full.output_rate_hz = 0.0;
-        write_session_mcap(*o.out_path, cfg, full, scene::simulate(full));
+        write_session_mcap(*o.out_path, cfg, full, scene::simulate(full), start_ns);
       } else {
-        write_session_mcap(*o.out_path, cfg, setup, r);
+        write_session_mcap(*o.out_path, cfg, setup, r, start_ns);
       }
     } else if (o.out_path) {
       write_csv(*o.out_path, r);

@@ -1,6 +1,7 @@
 // `teleopctl simulate`: play a scene on simulated devices with the nodes' control code.
 #pragma once
 
+#include <cstdint>
 #include <iosfwd>
 #include <optional>
 #include <string>
@@ -15,6 +16,8 @@ struct SimulateOptions {
   std::optional<unsigned long long> seed{};
   std::optional<std::string> out_path{};   // CSV time series
   std::optional<std::string> plot_path{};  // SVG of positions and forces
+  // The session file's first log time, ns since the epoch; none: the wall clock at the start.
+  std::optional<std::int64_t> log_start_ns{};
   bool json{false};
 };
 

@@ -146,10 +146,14 @@ double scene_rate_hz(const std::string& path) {
   return std::stod(m[2].str());
 }
 
+// A simulated session whose log times are simulated time (--log-start-ns 0): these tests
+// compare log times with the simulation's clock. By default a session starts at the wall clock
+// (checked by ctest -R replay.simulate_mcap_js with the official reader).
 std::string simulate_mcap(const TempDir& dir, const std::string& scene_path,
                           const std::string& extra, const std::string& name) {
   const std::string out = dir.file(name);
-  const SplitResult r = run(dir, "simulate " + scene_path + " " + extra + " --out " + out);
+  const SplitResult r =
+      run(dir, "simulate " + scene_path + " " + extra + " --log-start-ns 0 --out " + out);
   EXPECT_TRUE(r.exit_code == 0 || r.exit_code == 3) << r.out << r.err;
   EXPECT_TRUE(fs::exists(out)) << r.err;
   return out;
@@ -170,7 +174,9 @@ TEST(Replay, SummaryCountsWhatSimulateWrote) {
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const json j = json::parse(r.out);
   EXPECT_NEAR(j["duration_s"].get<double>(), duration_s, 1e-9);
-  EXPECT_EQ(j["messages"].get<std::uint64_t>(), 2 * per_side + 2);
+  // Both nodes' batches, each cycle once more on its node's /cycle channel (issue 17), the
+  // configuration and the report.
+  EXPECT_EQ(j["messages"].get<std::uint64_t>(), 2 * per_side + 2 * cycles + 2);
   std::map<std::string, std::pair<std::uint64_t, std::string>> channels;
   for (const json& c : j["channels"]) {
     channels[c["topic"].get<std::string>()] = {c["messages"].get<std::uint64_t>(),
@@ -181,6 +187,8 @@ TEST(Replay, SummaryCountsWhatSimulateWrote) {
   EXPECT_EQ(channels["/supervisor/stability"], (P{1, "teleop.v1.StabilityReport"}));
   EXPECT_EQ(channels["/master/telemetry"], (P{per_side, "teleop.v1.Telemetry"}));
   EXPECT_EQ(channels["/slave/telemetry"], (P{per_side, "teleop.v1.Telemetry"}));
+  EXPECT_EQ(channels["/master/cycle"], (P{cycles, "teleop.v1.CycleRecord"}));
+  EXPECT_EQ(channels["/slave/cycle"], (P{cycles, "teleop.v1.CycleRecord"}));
   for (const char* side : {"master", "slave"}) {
     const json& n = j["nodes"][side];
     EXPECT_EQ(n["cycles"].get<std::uint64_t>(), cycles) << side;

@@ -499,6 +499,18 @@ TEST(SupervisorLive, SessionRecordedLiveIsReadCompletelyByTheOfficialReaderAndBy
     EXPECT_GE(engaged, 3000) << topic;
     RecordProperty(std::string(topic) + " cycles", std::to_string(c.size()));
   }
+  // Issue 17: every recorded cycle once more on its node's /cycle channel, and log times on
+  // the wall clock (UTC ns since the epoch), not the monotonic clock: the session ran within
+  // the last few minutes.
+  EXPECT_EQ(counts["/master/cycle"], cycles["/master/telemetry"].size());
+  EXPECT_EQ(counts["/slave/cycle"], cycles["/slave/telemetry"].size());
+  ASSERT_TRUE(reader.statistics().has_value());
+  const auto wall_now_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               std::chrono::system_clock::now().time_since_epoch())
+                               .count();
+  const auto first_ns = static_cast<std::int64_t>(reader.statistics()->message_start_time);
+  EXPECT_LT(wall_now_ns - first_ns, 600'000'000'000LL) << "first log time " << first_ns;
+  EXPECT_GT(wall_now_ns - first_ns, 0LL) << "first log time " << first_ns;
   std::cout << "session file " << fs::file_size(*file) << " bytes, " << total
             << " messages; verify.mjs: " << js.dump() << "\n";
 }
