@@ -72,8 +72,8 @@ void SupervisorCore::record(std::string_view topic, const google::protobuf::Mess
 
 void SupervisorCore::record_start() {
   if (!opts_.sink) return;
-  record_session_start(*opts_.sink, loaded_, opts_.config_text, report_, "teleop-supervisor",
-                       log_time_ns());
+  record_session_start(*opts_.sink, system_.source(), opts_.config_text, report_,
+                       "teleop-supervisor", log_time_ns());
   master_.rt_recorded = false;
   slave_.rt_recorded = false;
 }
