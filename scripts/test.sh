@@ -2,8 +2,7 @@
 # The README's second command: build (installing dependencies if needed) and run every test.
 #   scripts/test.sh            normal build in build/
 #   scripts/test.sh --sanitize ASan+UBSan build with clang in build-asan/
-# TELEOP_BUILD_TYPE=Release|Debug|RelWithDebInfo (default) picks the normal build's type; CI
-# runs the normal suite as Release (GCC's -O3 warnings, e.g. -Wrestrict, stay errors there).
+# TELEOP_BUILD_TYPE=Release|Debug|RelWithDebInfo (default) picks the normal build's type.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh

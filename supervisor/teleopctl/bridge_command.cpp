@@ -20,6 +20,7 @@
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "foxglove/Log.pb.h"
+#include "supervisor/core/session_output.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
@@ -144,36 +145,6 @@ class NodeFeed {
   std::uint64_t malformed_{0};
 };
 
-// An alarm as foxglove.Log for Foxglove's Log panel, mapped as the recording maps it
-// (common/record/session.hpp, topic::kLog): INFO -> INFO, WARNING and ACTION -> WARNING,
-// CRITICAL -> ERROR, unspecified -> UNKNOWN; name "teleop-supervisor/<side>"; message
-// "<kind>: <message>" and " (action: <action>)" if any; timestamp the receive time.
-foxglove::Log alarm_log(const v1::Alarm& a, std::uint64_t time_ns) {
-  foxglove::Log log;
-  log.mutable_timestamp()->set_seconds(static_cast<std::int64_t>(time_ns / 1'000'000'000U));
-  log.mutable_timestamp()->set_nanos(static_cast<std::int32_t>(time_ns % 1'000'000'000U));
-  switch (a.severity()) {
-    case v1::Alarm::INFO:
-      log.set_level(foxglove::Log::INFO);
-      break;
-    case v1::Alarm::WARNING:
-    case v1::Alarm::ACTION:
-      log.set_level(foxglove::Log::WARNING);
-      break;
-    case v1::Alarm::CRITICAL:
-      log.set_level(foxglove::Log::ERROR);
-      break;
-    default:
-      log.set_level(foxglove::Log::UNKNOWN);
-      break;
-  }
-  log.set_name("teleop-supervisor/" + a.side());
-  std::string text = a.kind() + ": " + a.message();
-  if (!a.action().empty()) text += " (action: " + a.action() + ")";
-  log.set_message(text);
-  return log;
-}
-
 class SupervisorFeed {
  public:
   explicit SupervisorFeed(bridge::FoxgloveServer& server)
@@ -197,7 +168,10 @@ class SupervisorFeed {
       v1::Alarm a;
       if (server_.has_subscribers(log_) &&
           a.ParseFromArray(body.data(), static_cast<int>(body.size()))) {
-        server_.publish(log_, now, alarm_log(a, now).SerializeAsString());
+        // The same foxglove.Log the recording writes (supervisor/core/session_output.hpp).
+        server_.publish(
+            log_, now,
+            supervisor::to_foxglove_log(a, static_cast<std::int64_t>(now)).SerializeAsString());
       }
     }
     if (topic == "status") {
