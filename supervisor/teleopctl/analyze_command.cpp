@@ -299,7 +299,7 @@ AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
     } else if (a == "--force-loop") {
       o.force_loop = true;
     } else if (a == "--plot") {
-      o.plot_path = value("--plot");
+      o.plot_path = svg_plot_path(value("--plot"));
     } else {
       return false;
     }
@@ -308,6 +308,9 @@ AnalyzeOptions parse_analyze_args(const std::vector<std::string>& args) {
   if (o.config_path.empty()) throw UsageError("missing CONFIG");
   if (o.force_loop && o.max_stiffness_side) {
     throw UsageError("--force-loop and --max-stiffness are separate analyses: give one");
+  }
+  if (o.force_loop && o.plot_path) {
+    throw UsageError("--force-loop has no plot: its roots are printed (--json for all of them)");
   }
   if (!o.max_stiffness_side && (!o.rates_hz.empty() || o.sweep)) {
     throw UsageError("--rates and --sweep go with --max-stiffness");
@@ -321,6 +324,14 @@ int run_analyze(const AnalyzeOptions& o, std::ostream& out, std::ostream& err) {
     // to_force_loop_params) validates it, once.
     const config::LoadedConfig cfg = config::parse_config_file(o.config_path, o.overrides);
     if (o.force_loop) return run_force_loop(cfg, o, out);
+    if (cfg.config.has_force_loop() && !cfg.config.has_gains()) {
+      // A force-loop file analysed as a teleoperator: say which analysis it is for.
+      err << "teleopctl analyze: " << cfg.source_name
+          << " describes a force loop (force_loop) and no teleoperator (no gains): analyse it "
+             "with 'teleopctl analyze "
+          << o.config_path << " --force-loop'\n";
+      return kExitError;
+    }
     if (o.max_stiffness_side) return run_limits(cfg, o, out, err);
     return run_single(cfg, o, out);
   });

@@ -29,6 +29,17 @@ std::vector<std::string> split(const std::string& s, char separator) {
   return parts;
 }
 
+std::string svg_plot_path(const std::string& path) {
+  const std::string_view ext = ".svg";
+  if (path.size() <= ext.size() || path.compare(path.size() - ext.size(), ext.size(), ext) != 0) {
+    throw UsageError(
+        fmt::format("--plot writes SVG: give FILE.svg, not '{}' (for a PNG: rsvg-convert -o "
+                    "FILE.png FILE.svg)",
+                    path));
+  }
+  return path;
+}
+
 void take_only_positional(const std::string& arg, std::string& only,
                           std::string_view option_prefix) {
   if (arg.rfind(option_prefix, 0) == 0) throw UsageError("unknown option '" + arg + "'");

@@ -27,6 +27,9 @@ inline constexpr int kExitUsage = 2;
 // for ever" to ZeroMQ).
 [[nodiscard]] int parse_timeout_ms(const std::string& text);
 [[nodiscard]] std::vector<std::string> split(const std::string& s, char separator);
+// --plot FILE.svg: the plots are SVG; any other name is a UsageError (a PNG comes from the SVG:
+// `rsvg-convert -o FILE.png FILE.svg`).
+[[nodiscard]] std::string svg_plot_path(const std::string& path);
 
 // The last branch of an option loop that takes one positional argument: an unknown option
 // (an argument starting with `option_prefix`) and a second positional argument are

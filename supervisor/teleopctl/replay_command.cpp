@@ -433,8 +433,13 @@ int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::o
   } else {
     print_resimulation(j, a, before, after, out);
   }
+  // The exit code follows the verdicts, as analyze's does: a fault, then oscillation seen or
+  // an unstable analysis (3), then an uncertain analysis (4).
   if (after.fault) return 5;
-  return after.oscillation.detected ? 3 : kExitOk;
+  const std::string verdict = j["resimulated"]["analysis"]["verdict"].get<std::string>();
+  if (verdict == "invalid") return kExitError;  // the model is not finite: never "ok"
+  if (after.oscillation.detected || verdict == "unstable") return 3;
+  return verdict == "uncertain" ? 4 : kExitOk;
 }
 
 [[nodiscard]] LiveReplayOptions live_options(const ReplayArgs& a) {
@@ -523,7 +528,9 @@ std::string replay_usage() {
          "                 analyser's verdict and limits, slave tracking error, fixture\n"
          "                 penetration and oscillation, next to what the recording shows\n"
          "Exit: 0 ok, 1 bad file (not MCAP, damaged: try --recover) or unknown channel, 2 usage;\n"
-         "--resimulate: 3 the resimulated slave oscillates, 5 its law latched a fault.\n";
+         "--resimulate: 3 the resimulated slave oscillates or the analyser calls the resimulated\n"
+         "loop unstable, 4 the analysis is uncertain, 5 its law latched a fault, 1 the\n"
+         "resimulated model is not finite (invalid).\n";
 }
 
 int run_replay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {

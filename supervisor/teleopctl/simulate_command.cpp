@@ -422,8 +422,8 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
         throw UsageError(fmt::format("--seed: '{}' is not a non-negative integer", v));
       }
       o.seed = s;
-    } else if (a == "--log-start-ns" || a.rfind("--log-start-ns=", 0) == 0) {
-      const std::string v = a == "--log-start-ns" ? value("--log-start-ns") : a.substr(15);
+    } else if (a == "--log-start-ns") {
+      const std::string v = value("--log-start-ns");
       long long n = 0;
       const auto [p, ec] = std::from_chars(v.data(), v.data() + v.size(), n);
       if (ec != std::errc{} || p != v.data() + v.size() || n < 0) {
@@ -434,7 +434,7 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
     } else if (a == "--out") {
       o.out_path = value("--out");
     } else if (a == "--plot") {
-      o.plot_path = value("--plot");
+      o.plot_path = svg_plot_path(value("--plot"));
     } else if (!a.empty() && a[0] == '-') {
       throw UsageError(fmt::format("unknown option '{}'", a));
     } else if (o.scene_path.empty()) {

@@ -121,6 +121,62 @@ TEST(CliJson, EveryJsonOutputHasSnakeCaseKeysOnly) {
   std::filesystem::remove_all(dir);
 }
 
+// Findings of a new user (issue 17, "Smaller"): a plot name that is not SVG, a plot the
+// analysis does not have, and a force-loop file analysed as a teleoperator are refused with what
+// to do instead; replay --resimulate's exit code follows the analyser's verdict.
+TEST(CliRefusals, PlotsAreSvgAndOnlyWhereThereIsOne) {
+  const std::string scene = kSource + "/examples/scenes/paddles_slave_fixture_stable.textproto";
+  for (const std::string& args :
+       {"analyze " + kLive + " --plot /tmp/teleop-x.png",
+        "simulate " + scene + " --plot=/tmp/teleop-x.png",
+        "analyze " + kSource + "/examples/force_loop.textproto --force-loop --plot /tmp/x.svg"}) {
+    const CliResult r = teleopctl(args);
+    EXPECT_EQ(r.exit_code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find("--plot"), std::string::npos) << args << "\n" << r.out;
+  }
+  EXPECT_NE(teleopctl("analyze " + kLive + " --plot /tmp/teleop-x.png").out.find("rsvg-convert"),
+            std::string::npos);
+}
+
+TEST(CliRefusals, AForceLoopFileAnalysedAsATeleoperatorSuggestsForceLoop) {
+  const std::string file = kSource + "/examples/force_loop.textproto";
+  const CliResult r = teleopctl("analyze " + file);
+  EXPECT_EQ(r.exit_code, 1) << r.out;
+  EXPECT_NE(r.out.find("--force-loop"), std::string::npos) << r.out;
+  // And the analysis it suggests works on that file.
+  EXPECT_EQ(teleopctl("analyze " + file + " --force-loop").exit_code, 0);
+}
+
+TEST(CliRefusals, ResimulateExitCodeFollowsTheVerdict) {
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("teleop-cli-resim-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  const std::string scene = kSource + "/examples/scenes/paddles_slave_fixture_stable.textproto";
+  const std::string mcap = (dir / "s.mcap").string();
+  // 0.1 s of motion: too short for the resimulation to see an oscillation, so only the
+  // analyser's verdict can make the exit code non-zero (it was 0 for an unstable loop before).
+  ASSERT_EQ(teleopctl("simulate " + scene + " --duration=0.1 --out=" + mcap, false).exit_code, 0);
+  // The analyser's own verdicts on the scene's loop (analyze: 0 stable, 3 unstable), for the
+  // recorded slave fixture and a far stiffer one; replay --resimulate must exit as analyze does.
+  for (const std::string& set :
+       {std::string(), std::string(" --set slave.fixture.stiffness_N_per_m=20000")}) {
+    const int analyzed = teleopctl("analyze " + scene + set, false).exit_code;
+    ASSERT_TRUE(analyzed == 0 || analyzed == 3) << set;
+    const CliResult r = teleopctl("replay " + mcap + " --resimulate --json" + set, false);
+    const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+    ASSERT_FALSE(j.is_discarded()) << r.out;
+    EXPECT_EQ(j["resimulated"]["analysis"]["verdict"], analyzed == 0 ? "stable" : "unstable")
+        << set;
+    EXPECT_EQ(r.exit_code, analyzed) << set << "\n" << r.out;
+  }
+  // Both verdicts occur.
+  EXPECT_EQ(teleopctl("analyze " + scene, false).exit_code, 0);
+  EXPECT_EQ(teleopctl("analyze " + scene + " --set slave.fixture.stiffness_N_per_m=20000", false)
+                .exit_code,
+            3);
+  std::filesystem::remove_all(dir);
+}
+
 // A command run on a terminal (script(1) gives it a pseudo-terminal): everything it printed.
 std::string on_terminal(const std::string& args) {
   return run("script -qec \"" + std::string(TELEOPCTL_PATH) + " " + args + "\" /dev/null").out;
