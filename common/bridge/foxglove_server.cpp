@@ -119,16 +119,21 @@ struct FoxgloveServer::Impl {
                 {"schemaEncoding", c.spec.schema_encoding}};
   }
 
-  // Text to one client, unless its buffer is full (then dropped and counted).
-  void send_text(Hdl h, const std::string& text) {
+  // One frame to one client, unless its buffer is full (then dropped and counted): whether it
+  // was handed to the connection.
+  bool send_frame(Hdl h, const std::string& bytes, websocketpp::frame::opcode::value opcode) {
     websocketpp::lib::error_code ec;
     const Server::connection_ptr con = server.get_con_from_hdl(h, ec);
-    if (ec || !con) return;
+    if (ec || !con) return false;
     if (con->get_buffered_amount() > options.max_buffered_bytes) {
       dropped.fetch_add(1, std::memory_order_relaxed);
-      return;
+      return false;
     }
-    (void)con->send(text, websocketpp::frame::opcode::text);
+    return !con->send(bytes, opcode);
+  }
+
+  void send_text(Hdl h, const std::string& text) {
+    (void)send_frame(h, text, websocketpp::frame::opcode::text);
   }
 
   void event(Hdl h, const std::string& what) {
@@ -305,15 +310,10 @@ struct FoxgloveServer::Impl {
   }
 
   void send_data(Hdl h, std::uint32_t sub, std::uint64_t time_ns, const std::string& payload) {
-    websocketpp::lib::error_code ec;
-    const Server::connection_ptr con = server.get_con_from_hdl(h, ec);
-    if (ec || !con) return;
-    if (con->get_buffered_amount() > options.max_buffered_bytes) {
-      dropped.fetch_add(1, std::memory_order_relaxed);
-      return;
+    if (send_frame(h, message_data_frame(sub, time_ns, payload),
+                   websocketpp::frame::opcode::binary)) {
+      sent.fetch_add(1, std::memory_order_relaxed);
     }
-    ec = con->send(message_data_frame(sub, time_ns, payload), websocketpp::frame::opcode::binary);
-    if (!ec) sent.fetch_add(1, std::memory_order_relaxed);
   }
 
   void deliver(std::uint32_t ch, std::uint64_t time_ns, const std::string& payload) {
