@@ -316,7 +316,8 @@ void apply_mode_command(node::NodeCore& core, node::Command c, v1::NodeCommandRe
 }  // namespace
 
 struct NodeApp::Impl {
-  zmq::context_t ctx{1};
+  // Two I/O threads: the peer link on one, the service endpoints on the other (IoLane).
+  zmq::context_t ctx{transport::kNodeIoThreads};
   std::optional<transport::ZapHandler> zap{};
   CommandAuthority authority{};
   std::uint64_t newest_retune_id{0};  // the command thread's: the newest change number taken
@@ -404,14 +405,15 @@ void NodeApp::set_link_thread_priority() {
 void NodeApp::open_endpoints() {
   Impl& m = *impl_;
   m.zap.emplace(m.ctx);
-  m.state_pub.emplace(
-      transport::make_state_publisher(m.ctx, setup_.endpoints.state, m.server_security));
-  m.command_rep.emplace(
-      transport::make_command_server(m.ctx, setup_.endpoints.command, m.server_security));
-  m.telemetry_pub.emplace(
-      transport::make_telemetry_publisher(m.ctx, setup_.endpoints.telemetry, m.server_security));
-  m.state_sub.emplace(
-      transport::make_state_subscriber(m.ctx, setup_.endpoints.peer_state, m.client_security));
+  using transport::IoLane;
+  m.state_pub.emplace(transport::make_state_publisher(m.ctx, setup_.endpoints.state,
+                                                      m.server_security, IoLane::kPeerLink));
+  m.command_rep.emplace(transport::make_command_server(m.ctx, setup_.endpoints.command,
+                                                       m.server_security, IoLane::kService));
+  m.telemetry_pub.emplace(transport::make_telemetry_publisher(m.ctx, setup_.endpoints.telemetry,
+                                                              m.server_security, IoLane::kService));
+  m.state_sub.emplace(transport::make_state_subscriber(m.ctx, setup_.endpoints.peer_state,
+                                                       m.client_security, IoLane::kPeerLink));
   // Connections, closures and failed handshakes on every endpoint, counted in telemetry.
   m.monitor.emplace(
       m.ctx,

@@ -70,9 +70,10 @@ namespace {
 // the bind or the connect last.
 template <typename Options>
 zmq::socket_t bound_socket(zmq::context_t& ctx, zmq::socket_type type, std::string_view endpoint,
-                           const LinkSecurity& security, const Options& options) {
+                           const LinkSecurity& security, IoLane lane, const Options& options) {
   zmq::socket_t socket(ctx, type);
   set_common(socket);
+  socket.set(zmq::sockopt::affinity, static_cast<std::uint64_t>(lane));
   options(socket);
   (void)apply_link_security(ctx, socket, endpoint, LinkRole::kServer, security);
   bind_or_throw(socket, endpoint);
@@ -81,10 +82,11 @@ zmq::socket_t bound_socket(zmq::context_t& ctx, zmq::socket_type type, std::stri
 
 template <typename Options>
 zmq::socket_t connected_socket(zmq::context_t& ctx, zmq::socket_type type,
-                               std::string_view endpoint, const LinkSecurity& security,
+                               std::string_view endpoint, const LinkSecurity& security, IoLane lane,
                                const Options& options) {
   zmq::socket_t socket(ctx, type);
   set_common(socket);
+  socket.set(zmq::sockopt::affinity, static_cast<std::uint64_t>(lane));
   set_heartbeats(socket);
   set_reconnect(socket);
   options(socket);
@@ -96,30 +98,33 @@ zmq::socket_t connected_socket(zmq::context_t& ctx, zmq::socket_type type,
 }  // namespace
 
 zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                   const LinkSecurity& security) {
-  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, [](zmq::socket_t& socket) {
-    socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
-    socket.set(zmq::sockopt::conflate, true);
-    // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM without
-    // conflation would drop the newest; see the header).
-    socket.set(zmq::sockopt::xpub_nodrop, false);
-  });
+                                   const LinkSecurity& security, IoLane lane) {
+  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, lane,
+                      [](zmq::socket_t& socket) {
+                        socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
+                        socket.set(zmq::sockopt::conflate, true);
+                        // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM
+                        // without conflation would drop the newest; see the header).
+                        socket.set(zmq::sockopt::xpub_nodrop, false);
+                      });
 }
 
 zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                       const LinkSecurity& security) {
-  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, [](zmq::socket_t& socket) {
-    socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
-    // No inbound limit: see kNoInboundHwm (the budget bounds what a subscriber may send).
-    socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
-    socket.set(zmq::sockopt::sndhwm, 1000);
-    socket.set(zmq::sockopt::xpub_nodrop, false);
-  });
+                                       const LinkSecurity& security, IoLane lane) {
+  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, lane,
+                      [](zmq::socket_t& socket) {
+                        socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
+                        // No inbound limit: see kNoInboundHwm (the budget bounds what a subscriber
+                        // may send).
+                        socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
+                        socket.set(zmq::sockopt::sndhwm, 1000);
+                        socket.set(zmq::sockopt::xpub_nodrop, false);
+                      });
 }
 
 zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,
-                                    const LinkSecurity& security) {
-  return connected_socket(ctx, zmq::socket_type::sub, endpoint, security,
+                                    const LinkSecurity& security, IoLane lane) {
+  return connected_socket(ctx, zmq::socket_type::sub, endpoint, security, lane,
                           [](zmq::socket_t& socket) {
                             // Not ZMQ_CONFLATE (see the header: libzmq 4.3.4 strands and leaks
                             // with it on a SUB).
@@ -130,11 +135,12 @@ zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoi
 }
 
 zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint,
-                                  const LinkSecurity& security) {
-  return bound_socket(ctx, zmq::socket_type::rep, endpoint, security, [](zmq::socket_t& socket) {
-    socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
-    socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
-  });
+                                  const LinkSecurity& security, IoLane lane) {
+  return bound_socket(ctx, zmq::socket_type::rep, endpoint, security, lane,
+                      [](zmq::socket_t& socket) {
+                        socket.set(zmq::sockopt::maxmsgsize, kMaxInboundMessageBytes);
+                        socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
+                      });
 }
 
 zmq::socket_t make_command_client(zmq::context_t& ctx, std::string_view endpoint,
@@ -145,7 +151,7 @@ zmq::socket_t make_command_client(zmq::context_t& ctx, std::string_view endpoint
     throw std::invalid_argument(
         fmt::format("{}: command timeout must be positive, got {} ms", endpoint, timeout.count()));
   }
-  return connected_socket(ctx, zmq::socket_type::req, endpoint, security,
+  return connected_socket(ctx, zmq::socket_type::req, endpoint, security, IoLane::kAny,
                           [timeout](zmq::socket_t& socket) {
                             socket.set(zmq::sockopt::req_relaxed, true);
                             socket.set(zmq::sockopt::req_correlate, true);

@@ -83,27 +83,41 @@ class BindError : public zmq::error_t {
 // socket.bind(endpoint), a failure thrown as BindError.
 void bind_or_throw(zmq::socket_t& socket, std::string_view endpoint);
 
+// Which of a context's libzmq I/O threads serves a socket's connections (ZMQ_AFFINITY, a bit
+// per I/O thread). A node's context has kNodeIoThreads: the peer link (state publisher and
+// subscriber) on one, everything a console or a stranger can reach (commands, telemetry) on the
+// other, so that whatever arrives on those endpoints -- a flood, a bad handshake, a greedy
+// client -- is never worked through on the thread that carries the link's states (issue 14
+// finding 5's sibling: the link shares nothing with the service endpoints but the process).
+// kAny: libzmq's choice (a context with one I/O thread).
+enum class IoLane : std::uint64_t { kAny = 0, kPeerLink = 1, kService = 2 };
+inline constexpr int kNodeIoThreads = 2;
+
 // A PUB bound to `endpoint` (server side of the security policy); "tcp://127.0.0.1:*" picks a
 // free port, read back with bound_endpoint(). Throws std::invalid_argument when the policy
 // forbids the setup, BindError (a zmq::error_t naming the endpoint) when binding fails.
 [[nodiscard]] zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                                 const LinkSecurity& security);
+                                                 const LinkSecurity& security,
+                                                 IoLane lane = IoLane::kAny);
 
 // A PUB for telemetry (server side): unlike the state link, every message counts (each
 // carries a batch of cycles), so no conflation; SNDHWM 1000 (20 s at 50 Hz) absorbs a slow
 // subscriber, past which ZeroMQ drops for that subscriber only and the node never blocks.
 [[nodiscard]] zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                                     const LinkSecurity& security);
+                                                     const LinkSecurity& security,
+                                                     IoLane lane = IoLane::kAny);
 
 // A SUB connected to `endpoint` (client side), subscribed to everything; read it with
 // recv_latest().
 [[nodiscard]] zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,
-                                                  const LinkSecurity& security);
+                                                  const LinkSecurity& security,
+                                                  IoLane lane = IoLane::kAny);
 
 // A REP bound to `endpoint` (server side) for operator and supervisor commands: one reply per
 // request, in order, which is all a command channel needs.
 [[nodiscard]] zmq::socket_t make_command_server(zmq::context_t& ctx, std::string_view endpoint,
-                                                const LinkSecurity& security);
+                                                const LinkSecurity& security,
+                                                IoLane lane = IoLane::kAny);
 
 // A REQ connected to `endpoint` (client side); a request waits at most `timeout` to be sent
 // and as long again for its reply.

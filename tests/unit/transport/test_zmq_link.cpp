@@ -459,6 +459,35 @@ TEST(LatestValue, BurstDeliversTheNewestNotABacklog) {
   EXPECT_TRUE(publisher.get(zmq::sockopt::conflate));
 }
 
+// A node's context: the peer link on one libzmq I/O thread, the service endpoints (commands,
+// telemetry) on the other, so a stranger's traffic on those is never worked through on the
+// thread carrying the link's states. Each lane is a real I/O thread: both carry messages in a
+// context of kNodeIoThreads, and libzmq refuses to bind a lane a context does not have (the
+// affinity is in force, not just stored).
+TEST(IoLanes, TheLinkAndTheServiceEndpointsRunOnTheirOwnIoThreads) {
+  zmq::context_t ctx{kNodeIoThreads};
+  zmq::socket_t publisher = make_state_publisher(ctx, kAnyLoopbackPort, {}, IoLane::kPeerLink);
+  zmq::socket_t subscriber =
+      make_state_subscriber(ctx, bound_endpoint(publisher), {}, IoLane::kPeerLink);
+  zmq::socket_t server = make_command_server(ctx, kAnyLoopbackPort, {}, IoLane::kService);
+  zmq::socket_t telemetry = make_telemetry_publisher(ctx, kAnyLoopbackPort, {}, IoLane::kService);
+  EXPECT_EQ(publisher.get(zmq::sockopt::affinity), 1u);
+  EXPECT_EQ(subscriber.get(zmq::sockopt::affinity), 1u);
+  EXPECT_EQ(server.get(zmq::sockopt::affinity), 2u);
+  EXPECT_EQ(telemetry.get(zmq::sockopt::affinity), 2u);
+  int probe = 0;
+  EXPECT_TRUE(pump_until_received(publisher, subscriber, probe, 0).has_value());
+  zmq::socket_t client = make_command_client(ctx, bound_endpoint(server), {}, milliseconds{2000});
+  send_text(client, "ping");
+  zmq::message_t request;
+  ASSERT_TRUE(server.recv(request));
+  EXPECT_EQ(request.to_string(), "ping");
+
+  zmq::context_t one{1};
+  EXPECT_THROW((void)make_command_server(one, kAnyLoopbackPort, {}, IoLane::kService), BindError);
+  EXPECT_NO_THROW((void)make_command_server(one, kAnyLoopbackPort, {}, IoLane::kPeerLink));
+}
+
 TEST(LatestValue, NothingPendingTimesOutEmpty) {
   zmq::context_t ctx;
   zmq::socket_t publisher = make_state_publisher(ctx, kAnyLoopbackPort, {});
