@@ -1,10 +1,19 @@
 #include "common/config/resimulation_loader.hpp"
 
-#include "common/config/node_loader.hpp"
 #include "common/config/scene_loader.hpp"
+#include "common/config/system_compiler.hpp"
 #include "common/scene/lockstep.hpp"
 
 namespace teleop::config {
+namespace {
+
+// The recorded configuration again only when overrides made `config` another one: each
+// configuration is validated once (to_scene_setup / compile_system).
+[[nodiscard]] bool same_configuration(const LoadedConfig& a, const LoadedConfig& b) {
+  return a.config.SerializeAsString() == b.config.SerializeAsString();
+}
+
+}  // namespace
 
 std::optional<Resimulation> to_resimulation(const LoadedConfig& config,
                                             const LoadedConfig& recorded, double recorded_master0_m,
@@ -13,12 +22,15 @@ std::optional<Resimulation> to_resimulation(const LoadedConfig& config,
   scene::ResimulationSetup& r = out.setup;
   r.master0_m = recorded_master0_m;
   r.slave0_m = recorded_slave0_m;
+  TeleopParams params;
   if (config.config.has_scene()) {
     const scene::SceneSetup setup = to_scene_setup(config);
     if (setup.force_device) return std::nullopt;
+    params = setup.teleop;
     r.law = setup.law;
     r.slave = setup.slave;
-    out.recorded_slave = to_scene_setup(recorded).slave;
+    out.recorded_slave =
+        same_configuration(config, recorded) ? setup.slave : to_scene_setup(recorded).slave;
     r.master0_m = setup.master.initial_position_m;
     r.slave0_m = setup.slave.initial_position_m;
     if (setup.equilibrium_perturbation_m) {
@@ -29,13 +41,16 @@ std::optional<Resimulation> to_resimulation(const LoadedConfig& config,
       r.law.clutch_fade_s = 0.0;
     }
   } else {
-    const NodeSetup node = to_node_setup(config, transport::Role::kSlave);
+    const CompiledSystem system = compile_system(config);
+    const NodeSetup& node = system.node(transport::Role::kSlave);
+    params = system.teleop();
     r.law = node.settings.law;
     r.slave = node.sim;
     r.slave.hold_scene_until_engaged = false;
-    out.recorded_slave = to_node_setup(recorded, transport::Role::kSlave).sim;
+    out.recorded_slave = same_configuration(config, recorded)
+                             ? node.sim
+                             : compile_system(recorded).node(transport::Role::kSlave).sim;
   }
-  const TeleopParams params = to_teleop_params(config);
   r.sample_rate_hz = params.sample_rate_hz;
   r.round_trip_delay_samples = static_cast<std::size_t>(params.round_trip_delay_samples);
   r.position_scaling = params.scaling.position;

@@ -101,4 +101,21 @@ class LawCore {
   bool faulted_{false};
 };
 
+// What both laws expose of their shared core, and the fault latch they share.
+class LawBase {
+ public:
+  [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
+  [[nodiscard]] double velocity_m_per_s() const noexcept {
+    return core_.estimator().velocity_m_per_s();
+  }
+  [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
+
+ protected:
+  // Throws std::invalid_argument naming the field (validate()).
+  LawBase(const LawParams& params, LawCore::Side side) : core_(params, side) {}
+  TELEOP_RT [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
+
+  LawCore core_;
+};
+
 }  // namespace teleop::control

@@ -4,7 +4,7 @@
 #include <cmath>
 
 namespace teleop::control {
-MasterLaw::MasterLaw(const LawParams& params) : core_(params, LawCore::Side::kMaster) {
+MasterLaw::MasterLaw(const LawParams& params) : LawBase(params, LawCore::Side::kMaster) {
   set_terms(core_.params().gains);
 }
 

@@ -40,7 +40,7 @@
 
 namespace teleop::control {
 
-class MasterLaw {
+class MasterLaw : public LawBase {
  public:
   // Throws std::invalid_argument naming the field (validate()).
   explicit MasterLaw(const LawParams& params);
@@ -68,19 +68,11 @@ class MasterLaw {
   TELEOP_RT void reset() noexcept;
   TELEOP_RT void reset(double position_m) noexcept;
 
-  [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
   [[nodiscard]] double coupling_weight() const noexcept { return state_.weight; }
   [[nodiscard]] double offset_m() const noexcept { return state_.offset_m; }
-  [[nodiscard]] double velocity_m_per_s() const noexcept {
-    return core_.estimator().velocity_m_per_s();
-  }
-  [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
 
  private:
   TELEOP_RT void set_terms(const Gains& g) noexcept;
-  TELEOP_RT [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
-
-  LawCore core_;
   // Which terms are non-zero (from the gains and beta).
   bool use_kpm_{false};
   bool use_kdm_{false};

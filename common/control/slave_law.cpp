@@ -4,7 +4,7 @@
 #include <cmath>
 
 namespace teleop::control {
-SlaveLaw::SlaveLaw(const LawParams& params) : core_(params, LawCore::Side::kSlave) {
+SlaveLaw::SlaveLaw(const LawParams& params) : LawBase(params, LawCore::Side::kSlave) {
   set_terms(core_.params().gains);
   const SlaveLimits& l = core_.params().slave_limits;
   check_position_ = std::isfinite(l.min_position_m) || std::isfinite(l.max_position_m);

@@ -44,7 +44,7 @@
 
 namespace teleop::control {
 
-class SlaveLaw {
+class SlaveLaw : public LawBase {
  public:
   // Throws std::invalid_argument naming the field (validate()).
   explicit SlaveLaw(const LawParams& params);
@@ -70,21 +70,13 @@ class SlaveLaw {
   TELEOP_RT void reset() noexcept;
   TELEOP_RT void reset(double position_m) noexcept;
 
-  [[nodiscard]] bool faulted() const noexcept { return core_.faulted(); }
   [[nodiscard]] bool holding() const noexcept { return state_.holding; }
   // The position reference x_r (slave coordinates) of the last step, before clamping.
   [[nodiscard]] double reference_m() const noexcept { return state_.reference_m; }
   [[nodiscard]] double reference_weight() const noexcept { return state_.weight; }
-  [[nodiscard]] double velocity_m_per_s() const noexcept {
-    return core_.estimator().velocity_m_per_s();
-  }
-  [[nodiscard]] const LawParams& params() const noexcept { return core_.params(); }
 
  private:
   TELEOP_RT void set_terms(const Gains& g) noexcept;
-  TELEOP_RT [[nodiscard]] Command latch_fault() noexcept { return core_.latch_fault(); }
-
-  LawCore core_;
   // Which terms are non-zero (from the gains) and which limits are set.
   bool follows_master_{false};  // K_ps or K_ds non-zero
   bool use_kps_{false};

@@ -15,6 +15,7 @@ namespace teleop::supervisor {
 
 void SupervisorCore::tick(std::int64_t now_ns) {
   now_ns_ = now_ns;
+  if (opts_.replay) return;  // a replay's checks were the live supervisor's, recorded
   excuse_own_stall();
   if (now_ns < next_check_ns_) return;
   next_check_ns_ += kCheckPeriodNs;

@@ -79,6 +79,7 @@ void SupervisorCore::record_start() {
 }
 
 std::optional<v1::NodeCommandReply> SupervisorCore::command(Side side, v1::NodeCommand::Kind kind) {
+  if (opts_.replay) return std::nullopt;
   v1::NodeCommand c;
   c.set_kind(kind);
   return ports_.command(side, c);
@@ -96,6 +97,7 @@ v1::StabilityReport SupervisorCore::make_report(const Assessment& a,
 }
 
 void SupervisorCore::publish_report(const std::string& reason) {
+  if (opts_.replay) return;  // the recorded reports are shown (replay_report())
   const Assessment& a = guard_.assess(live_);
   report_ = make_report(a, reason);
   ports_.report(report_);
@@ -108,6 +110,7 @@ void SupervisorCore::publish_report(const std::string& reason) {
 void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind,
                            const std::string& side, const std::string& message,
                            const Evidence& evidence, const std::string& action) {
+  if (opts_.replay) return;  // the recorded alarms are shown (replay_alarm())
   const std::string key = kind + "/" + side;
   auto it = last_alarm_ns_.find(key);
   // One of a kind per side per 2 s, unless the supervisor acted, or it is a command's, or a
@@ -132,8 +135,7 @@ void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind
     e->set_value(value);
     e->set_unit(unit);
   }
-  recent_alarms_.push_front(a);
-  while (recent_alarms_.size() > 50) recent_alarms_.pop_back();
+  replay_alarm(a);
   ports_.alarm(a);
   record(record::topic::kAlarms, a);
   record(record::topic::kLog, to_foxglove_log(a, log_time_ns()));
@@ -537,10 +539,21 @@ void SupervisorCore::set_recording(bool on, v1::SupervisorReply& reply) {
 }
 
 // --- status ----------------------------------------------------------------------------------
+void SupervisorCore::replay_alarm(const v1::Alarm& a) {
+  recent_alarms_.push_front(a);
+  while (recent_alarms_.size() > 50) recent_alarms_.pop_back();
+}
+
+v1::SupervisorStatus SupervisorCore::status() const {
+  v1::SupervisorStatus s;
+  fill_status(s, !opts_.replay);
+  return s;
+}
+
 void SupervisorCore::fill_status(v1::SupervisorStatus& s, bool may_command) const {
   s.set_time_ns(now_ns_);
-  s.set_source("live");
-  *s.mutable_report() = report_;
+  s.set_source(opts_.replay ? "replay" : "live");
+  if (!opts_.replay || report_replayed_) *s.mutable_report() = report_;
   // The round trip as measured now: the report is re-published only when the model changes
   // (a whole sample, or the rate), so its own figure is the one of that moment (0 in the one
   // published at the start). The model's samples are this figure's, rounded up.
@@ -561,6 +574,11 @@ void SupervisorCore::fill_status(v1::SupervisorStatus& s, bool may_command) cons
     s.set_recording_error(opts_.sink->error());
   } else if (!opts_.record_failure.empty()) {
     s.set_recording_error(opts_.record_failure);
+  } else if (replayed_recording_) {
+    s.set_recording_file(replayed_recording_->recording_file());
+    s.set_recorded_messages(replayed_recording_->recorded_messages());
+    s.set_recording_drops(replayed_recording_->recording_drops());
+    s.set_recording_bytes(replayed_recording_->recording_bytes());
   }
   s.set_pid(opts_.pid);
   s.set_master_alive(master_.last && now_ns_ - master_.last_received_ns < kHeartbeatNs);

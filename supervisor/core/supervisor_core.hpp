@@ -70,6 +70,12 @@ struct SupervisorOptions {
   // The configuration file as read, attached to each session file ("": the loaded
   // configuration in text format).
   std::string config_text{};
+  // A replay of a recorded session (`teleopctl replay`): the core watches the recorded
+  // telemetry as the live supervisor watched it -- the same node views, monitors and
+  // summaries -- and shows the recorded report, alarms and recording figures (replay_*())
+  // instead of its own. It never commands a node, raises an alarm, publishes a report or
+  // records; tick() only moves its clock.
+  bool replay{false};
 };
 
 // Timings of the supervisor's own checks.
@@ -103,6 +109,18 @@ class SupervisorCore {
   // checks (configurations, heartbeats, overruns, loss, the measured model, oscillation and
   // passivity through the ladder, the recorder) and the status for consoles.
   void tick(std::int64_t now_ns);
+
+  // A replay (SupervisorOptions::replay): what the recording says the supervisor published --
+  // its report, an alarm, its own status (for the recording's figures).
+  void replay_report(const v1::StabilityReport& r) {
+    report_ = r;
+    report_replayed_ = true;
+  }
+  void replay_alarm(const v1::Alarm& a);
+  void replay_recording(const v1::SupervisorStatus& recorded) { replayed_recording_ = recorded; }
+  // The status a console is shown at the time of the newest input, as a status request from
+  // a client that may command (never, in a replay) is answered.
+  [[nodiscard]] v1::SupervisorStatus status() const;
 
   [[nodiscard]] const config::NodeSetup& node(Side side) const {
     return system_.node(side == Side::kMaster ? transport::Role::kMaster : transport::Role::kSlave);
@@ -242,6 +260,8 @@ class SupervisorCore {
   std::string configuration_mismatch_{};  // "" while the supervisor and both nodes agree
   bool recorder_failure_announced_{false};
   bool recording_file_lost_announced_{false};
+  std::optional<v1::SupervisorStatus> replayed_recording_{};  // replay_recording()
+  bool report_replayed_{false};  // a replay shows a report only once one was recorded
 };
 
 }  // namespace teleop::supervisor

@@ -48,7 +48,7 @@ class LiveReplay {
         items_(live_items(session)),
         t0_(session.first_log_time_ns()),
         duration_s_(seconds_since(session.last_log_time_ns(), t0_)),
-        summary_(summary_setup(cfg_, err), summary_items(session)),
+        summary_(cfg_, summary_items(session), err),
         security_(plaintext_security(sc_)),
         pubs_{publisher(master_ep_), publisher(slave_ep_), publisher(report_ep_)},
         control_(command_server()),
@@ -201,8 +201,7 @@ std::string LiveReplay::status(const char* state, double p) const {
 void LiveReplay::publish_summary() {
   const double p = position();
   summary_.advance_to(t0_ + static_cast<std::uint64_t>(std::llround(std::max(0.0, p) * 1e9)));
-  v1::SupervisorStatus st;
-  summary_.fill(st);
+  v1::SupervisorStatus st = summary_.status();
   v1::ReplayPosition* r = st.mutable_replay();
   r->set_file(o_.file);
   r->set_state(state_name());

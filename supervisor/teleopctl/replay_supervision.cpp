@@ -4,13 +4,9 @@
 #include <google/protobuf/message.h>
 
 #include <exception>
-#include <numbers>
 #include <ostream>
 #include <string>
 
-#include "common/config/node_loader.hpp"
-#include "common/core/defaults.hpp"
-#include "common/sim/sensors.hpp"
 #include "supervisor/core/stability_guard.hpp"
 
 namespace teleop::ctl {
@@ -19,35 +15,45 @@ namespace {
 namespace pb = google::protobuf;
 using nlohmann::json;
 
-[[nodiscard]] double encoder_count_m(const sim::EncoderParams& e) {
-  return 2.0 * std::numbers::pi * e.metres_per_radian / (e.counts_per_rev * e.transmission_ratio);
+// The papers' paddles (Abbott-Okamura §4.1) at 1 kHz without fixtures: what a replay's summary
+// stream stands on when the session holds no configuration that describes the teleoperator.
+constexpr std::string_view kStandIn = R"(sample_rate_hz: 1000
+master { device { mass_kg: 0.040 damping_Ns_per_m: 0.41 } }
+slave { device { mass_kg: 0.036 damping_Ns_per_m: 0.49 } }
+gains { kpm: 600 kps: 600 kdm: 2 kds: 2 }
+velocity_filter { cutoff_hz: 200 }
+human { fixed { mass_kg: 0.012 damping_Ns_per_m: 0.76 stiffness_N_per_m: 70 } }
+)";
+
+[[nodiscard]] config::CompiledSystem replay_system(const std::optional<config::LoadedConfig>& cfg,
+                                                   std::ostream& err) {
+  if (cfg) {
+    try {
+      return config::compile_system(*cfg);
+    } catch (const std::exception& e) {
+      err << fmt::format(
+          "teleopctl replay: the recorded /config does not describe the teleoperator ({}); the "
+          "summary stream's monitors use defaults\n",
+          e.what());
+    }
+  }
+  return config::compile_system(config::parse_config_text(kStandIn, "(replay defaults)"));
 }
 
 }  // namespace
 
-SummarySetup summary_setup(const std::optional<config::LoadedConfig>& cfg, std::ostream& err) {
-  SummarySetup s;
-  s.oscillation_threshold_m =
-      defaults::kOscillationThreshold_counts * encoder_count_m(sim::EncoderParams{});
-  if (!cfg) return s;
-  const v1::Supervisor& sup = cfg->config.supervisor();
-  try {
-    const TeleopParams params = config::to_teleop_params(*cfg);
-    s.period_s = 1.0 / params.sample_rate_hz;
-    s.master_fixture = params.master_fixture;
-    s.slave_fixture = params.slave_fixture;
-    // The master's encoder count, as the supervisor takes it.
-    s.oscillation_threshold_m =
-        defaults::kOscillationThreshold_counts *
-        encoder_count_m(config::to_node_setup(*cfg, transport::Role::kMaster).sim.encoder);
-  } catch (const std::exception& e) {
-    err << fmt::format(
-        "teleopctl replay: the recorded /config does not describe the teleoperator ({}); the "
-        "summary stream's monitors use defaults\n",
-        e.what());
-  }
-  if (sup.has_oscillation_threshold_m()) s.oscillation_threshold_m = sup.oscillation_threshold_m();
-  return s;
+ReplaySummary::ReplaySummary(const std::optional<config::LoadedConfig>& config,
+                             std::vector<Item> items, std::ostream& err)
+    : system_(replay_system(config, err)), items_(std::move(items)) {
+  reset();
+}
+
+void ReplaySummary::reset() {
+  supervisor::SupervisorOptions o;
+  o.replay = true;
+  core_ = std::make_unique<supervisor::SupervisorCore>(system_, std::move(o), ports_);
+  next_ = 0;
+  applied_until_ns_ = 0;
 }
 
 void ReplaySummary::advance_to(std::uint64_t log_time_ns) {
@@ -57,85 +63,37 @@ void ReplaySummary::advance_to(std::uint64_t log_time_ns) {
     apply(items_[next_]);
     ++next_;
   }
-}
-
-void ReplaySummary::fill(v1::SupervisorStatus& s) const {
-  const auto now = static_cast<std::int64_t>(applied_until_ns_);
-  s.set_time_ns(now);
-  s.set_source("replay");
-  if (report_) *s.mutable_report() = *report_;
-  for (const v1::Alarm& a : alarms_) *s.add_recent_alarms() = a;
-  if (recorded_) {
-    s.set_recording_file(recorded_->recording_file());
-    s.set_recorded_messages(recorded_->recorded_messages());
-    s.set_recording_drops(recorded_->recording_drops());
-    s.set_recording_bytes(recorded_->recording_bytes());
-  }
-  master_.fill(*s.mutable_master(), now);
-  slave_.fill(*s.mutable_slave(), now);
-  s.set_master_alive(s.master().alive());
-  s.set_slave_alive(s.slave().alive());
-  s.set_client_may_command(false);  // a replay cannot be commanded
-}
-
-void ReplaySummary::Side::reset() {
-  builder.reset();
-  oscillation.clear();
-  passivity.reset();
-  session_id = 0;
-}
-
-void ReplaySummary::Side::add(const v1::Telemetry& t, std::uint64_t log_time_ns) {
-  // A restarted node (a new session) starts its summary again, as in the supervisor.
-  if (session_id != 0 && t.session_id() != session_id) reset();
-  session_id = t.session_id();
-  for (const v1::CycleRecord& c : t.cycles()) {
-    supervisor::feed_monitors(c, is_master_side, oscillation, passivity);
-  }
-  builder.add(t, static_cast<std::int64_t>(log_time_ns));
-}
-
-void ReplaySummary::Side::fill(v1::NodeSummary& out, std::int64_t now_ns) const {
-  builder.fill(out, now_ns, supervisor::read_monitors(oscillation, passivity));
-}
-
-void ReplaySummary::reset() {
-  master_.reset();
-  slave_.reset();
-  report_.reset();
-  alarms_.clear();
-  recorded_.reset();
-  next_ = 0;
-  applied_until_ns_ = 0;
+  core_->tick(static_cast<std::int64_t>(log_time_ns));
 }
 
 void ReplaySummary::apply(const Item& it) {
   const auto parse = [&](pb::Message& m) {
     return m.ParseFromArray(it.data.data(), static_cast<int>(it.data.size()));
   };
+  const auto at = static_cast<std::int64_t>(it.log_time_ns);
   switch (it.kind) {
     case kMaster:
     case kSlave: {
       v1::Telemetry t;
-      if (parse(t)) (it.kind == kMaster ? master_ : slave_).add(t, it.log_time_ns);
+      if (parse(t)) {
+        core_->on_telemetry(
+            it.kind == kMaster ? supervisor::Side::kMaster : supervisor::Side::kSlave, t, at);
+      }
       break;
     }
     case kReport: {
       v1::StabilityReport r;
-      if (parse(r)) report_ = std::move(r);
+      if (parse(r)) core_->replay_report(r);
       break;
     }
     case kAlarm: {
       v1::Alarm a;
-      if (parse(a)) {
-        alarms_.push_front(std::move(a));
-        while (alarms_.size() > kAlarmsShown) alarms_.pop_back();
-      }
+      if (parse(a)) core_->replay_alarm(a);
       break;
     }
     case kRecordedStatus: {
       v1::SupervisorStatus st;
-      if (parse(st)) recorded_ = std::move(st);
+      if (parse(st)) core_->replay_recording(st);
       break;
     }
   }

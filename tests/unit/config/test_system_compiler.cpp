@@ -9,6 +9,7 @@
 
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/node_loader.hpp"
+#include "common/config/resimulation_loader.hpp"
 #include "common/config/scene_loader.hpp"
 #include "common/config/system_compiler.hpp"
 
@@ -63,6 +64,32 @@ TEST(SystemCompiler, EachReaderValidatesOnce) {
   before = validation_count();
   (void)control_fingerprint(parsed);
   EXPECT_EQ(validation_count() - before, 1U) << "control_fingerprint";
+}
+
+// `replay --resimulate` validates the recorded configuration once, with a scene or without;
+// overrides make another configuration, and that one is validated once more. The simulated
+// slave it builds is the node's (without a scene) or the lockstep simulator's (with one).
+TEST(SystemCompiler, AResimulationValidatesEachConfigurationOnce) {
+  for (const std::string& text : {kPaddles, kPaddles + kScene}) {
+    const LoadedConfig recorded = parse_config_text(text, "recorded.textproto");
+    std::uint64_t before = validation_count();
+    const auto same = to_resimulation(recorded, recorded, 0.001, 0.002);
+    EXPECT_EQ(validation_count() - before, 1U) << text;
+    ASSERT_TRUE(same.has_value());
+    const LoadedConfig changed = parse_config_text(text, "recorded.textproto",
+                                                   {"gains.kps=500", "slave.device.mass_kg=0.05"});
+    before = validation_count();
+    const auto other = to_resimulation(changed, recorded, 0.001, 0.002);
+    EXPECT_EQ(validation_count() - before, 2U) << text;
+    ASSERT_TRUE(other.has_value());
+    EXPECT_EQ(other->setup.law.gains.kps, 500.0);
+    EXPECT_EQ(same->setup.law.gains.kps, recorded.config.gains().kps());
+    EXPECT_EQ(other->setup.slave.plant.device.mass_kg, 0.05);
+    // The recording's own slave, whatever the overrides.
+    for (const auto* r : {&*same, &*other}) {
+      EXPECT_EQ(r->recorded_slave.plant.device.mass_kg, recorded.config.slave().device().mass_kg());
+    }
+  }
 }
 
 // An invalid file never becomes a system: the compile names the field.

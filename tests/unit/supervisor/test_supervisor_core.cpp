@@ -283,6 +283,52 @@ TEST(SupervisorCore, ABuzzIsWarnedThenTheFixturesLoweredThenBothNodesDisengagedO
   EXPECT_TRUE(nodes.sent_of(v1::NodeCommand::ESTOP).empty());
 }
 
+// `teleopctl replay`'s summary stream: the core in its replay mode watches the same buzz with
+// the same monitors (a 1 mm, 25 Hz oscillation found on the slave), but commands, alarms,
+// reports and records nothing, and its ladder never moves; what it shows as the report and
+// the alarms is what the recording says.
+TEST(SupervisorCore, InAReplayItWatchesAsLiveButCommandsAlarmsAndReportsNothing) {
+  const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
+  FakeNodes nodes(c);
+  SupervisorOptions o;
+  o.replay = true;
+  SupervisorCore core(c, std::move(o), nodes);
+  nodes.run(core, kT0, kT0 + 3000 * kMs, buzz);
+  EXPECT_TRUE(nodes.sent.empty());
+  EXPECT_TRUE(nodes.alarms.empty());
+  EXPECT_TRUE(nodes.reports.empty());
+  EXPECT_EQ(nodes.statuses, 0);
+  EXPECT_EQ(core.escalation(), EscalationState::kWatching);
+  v1::SupervisorStatus st = core.status();
+  EXPECT_EQ(st.source(), "replay");
+  EXPECT_FALSE(st.client_may_command());
+  EXPECT_TRUE(st.slave().oscillating());
+  EXPECT_NEAR(st.slave().oscillation_amplitude_m(), 1e-3, 0.1e-3);
+  EXPECT_NEAR(st.slave().oscillation_frequency_hz(), 25.0, 2.5);
+  EXPECT_FALSE(st.master().oscillating());
+  EXPECT_TRUE(st.master_alive());
+  EXPECT_FALSE(st.has_report());
+  EXPECT_EQ(st.recent_alarms_size(), 0);
+
+  v1::StabilityReport recorded_report;
+  recorded_report.set_verdict("unstable");
+  core.replay_report(recorded_report);
+  v1::Alarm recorded_alarm;
+  recorded_alarm.set_kind("oscillation");
+  recorded_alarm.set_message("as recorded");
+  core.replay_alarm(recorded_alarm);
+  v1::SupervisorStatus recorded_status;
+  recorded_status.set_recording_file("/var/lib/teleop/s.mcap");
+  recorded_status.set_recorded_messages(1234);
+  core.replay_recording(recorded_status);
+  st = core.status();
+  EXPECT_EQ(st.report().verdict(), "unstable");
+  ASSERT_EQ(st.recent_alarms_size(), 1);
+  EXPECT_EQ(st.recent_alarms(0).message(), "as recorded");
+  EXPECT_EQ(st.recording_file(), "/var/lib/teleop/s.mcap");
+  EXPECT_EQ(st.recorded_messages(), 1234u);
+}
+
 TEST(SupervisorCore, AFindingThatEndsBeforeTheEscalationTimeIsOnlyWarned) {
   const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
   FakeNodes nodes(c);
