@@ -10,6 +10,8 @@
 #include <chrono>
 #include <optional>
 #include <regex>
+#include <tuple>
+#include <utility>
 #include <zmq.hpp>
 
 #include "common/config/config_loader.hpp"
@@ -35,13 +37,14 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-std::string wall_clock() {
+// The local wall clock: HH:MM:SS, and seconds since midnight.
+std::pair<std::string, int> wall_clock() {
   const time_t now = time(nullptr);
   tm local{};
   localtime_r(&now, &local);
   char text[16];
   strftime(text, sizeof(text), "%H:%M:%S", &local);
-  return text;
+  return {text, local.tm_hour * 3600 + local.tm_min * 60 + local.tm_sec};
 }
 
 struct ConsoleArgs {
@@ -146,6 +149,8 @@ class Console {
   void accept(const v1::SupervisorStatus& s) {
     view_.status = s;
     received_ns_ = monotonic_ns();
+    alarms_.merge(s);
+    view_.alarm_history = alarms_.newest_first();
   }
 
   void say(std::string text) {
@@ -155,7 +160,7 @@ class Console {
 
   void draw(std::int64_t now) {
     view_.status_age_ns = view_.status ? now - received_ns_ : 0;
-    view_.clock = wall_clock();
+    std::tie(view_.clock, view_.clock_s) = wall_clock();
     int rows = 0;
     int cols = 0;
     getmaxyx(stdscr, rows, cols);
@@ -504,6 +509,7 @@ class Console {
   std::string master_command_;
   std::string slave_command_;
   ConsoleView view_{};
+  AlarmHistory alarms_{};
   std::int64_t received_ns_{0};
   bool quit_{false};
   bool prompting_{false};
