@@ -37,14 +37,18 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-// The local wall clock: HH:MM:SS, and seconds since midnight.
-std::pair<std::string, int> wall_clock() {
-  const time_t now = time(nullptr);
+// The local wall clock: HH:MM:SS, and seconds since midnight with their fraction (so that an
+// alarm's wall-clock second, now minus its age, does not flicker between redraws).
+std::pair<std::string, double> wall_clock() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  const time_t now = ts.tv_sec;
   tm local{};
   localtime_r(&now, &local);
   char text[16];
   strftime(text, sizeof(text), "%H:%M:%S", &local);
-  return {text, local.tm_hour * 3600 + local.tm_min * 60 + local.tm_sec};
+  return {text, local.tm_hour * 3600.0 + local.tm_min * 60.0 + local.tm_sec +
+                    static_cast<double>(ts.tv_nsec) * 1e-9};
 }
 
 struct ConsoleArgs {

@@ -186,8 +186,9 @@ void add_stop_banners(std::vector<std::string>& lines, const v1::SupervisorStatu
   }
 }
 
-// One entry of the alarm list: an alarm, or a run of warnings of one kind and side (not
-// necessarily consecutive), shown as its newest with the count.
+// One entry of the alarm list: an alarm, or a run of warnings of one kind, side and message
+// (the condition; the evidence may differ; not necessarily consecutive), shown as its newest
+// with the count.
 struct AlarmEntry {
   const v1::Alarm* newest;
   int count;
@@ -206,7 +207,8 @@ std::vector<AlarmEntry> group_alarms(const ConsoleView& view, const v1::Supervis
     AlarmEntry* group = nullptr;
     for (AlarmEntry& e : out) {
       if (a->severity() == v1::Alarm::WARNING && e.newest->severity() == v1::Alarm::WARNING &&
-          e.newest->kind() == a->kind() && e.newest->side() == a->side()) {
+          e.newest->kind() == a->kind() && e.newest->side() == a->side() &&
+          e.newest->message() == a->message()) {
         group = &e;
         break;
       }
@@ -232,9 +234,11 @@ std::string alarm_row(const AlarmEntry& entry, const ConsoleView& view, std::int
     repeats = fmt::format(" x{} in {:.0f}s", entry.count,
                           static_cast<double>(a.time_ns() - entry.oldest_ns) * 1e-9);
     // The newest on the wall clock, live only (a replay's alarms are of another day).
-    if (!view.replay && view.clock_s >= 0) {
+    if (!view.replay && view.clock_s >= 0.0) {
       const double age_s = static_cast<double>(now_ns - a.time_ns() + view.status_age_ns) * 1e-9;
-      const long wall = ((view.clock_s - std::lround(age_s)) % 86400 + 86400) % 86400;
+      // The second it happened in (1 us of slack for the subtraction's rounding).
+      const long at_s = std::lround(std::floor(view.clock_s - age_s + 1e-6));
+      const long wall = (at_s % 86400 + 86400) % 86400;
       repeats += fmt::format(", last {:02}:{:02}:{:02}", wall / 3600, wall / 60 % 60, wall % 60);
     }
   }

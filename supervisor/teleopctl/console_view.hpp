@@ -26,8 +26,8 @@ struct ConsoleView {
   // The line being typed (set, seek), shown with its prompt; empty: none.
   std::string prompt{};
   bool help{false};
-  std::string clock{};  // wall clock HH:MM:SS
-  int clock_s{-1};      // the same, seconds since midnight; -1: unknown
+  std::string clock{};   // wall clock HH:MM:SS
+  double clock_s{-1.0};  // the same, seconds since midnight (with fractions); < 0: unknown
   // Every alarm the console has seen, newest first (AlarmHistory); empty: the summary's own
   // (its newest 20).
   std::vector<v1::Alarm> alarm_history{};
@@ -56,8 +56,8 @@ class AlarmHistory {
 // - the node table (a node's reason that does not fit its row continues on detail rows
 //   below it), the link, the plots (4 rows; one more per 4 rows the terminal has beyond 24, up
 //   to 8), stability, monitors, recorder, the alarm count;
-// - the alarms, newest first: warnings and infos of one kind and side grouped into one entry
-//   ("x37", when the newest was), actions and criticals each on their own; every row the
+// - the alarms, newest first: warnings of one kind, side and message grouped into one entry
+//   ("x37", when the newest was), every other alarm on its own; every row the
 //   terminal has beyond these goes to the alarms;
 // - at least 3 message rows, then the key line.
 // The screen, `rows` lines of at most `cols` characters.

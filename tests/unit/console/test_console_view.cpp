@@ -527,7 +527,7 @@ TEST(ConsoleScreen, FiftyRepeatedWarningsTakeOneEntryWithTheCountAndTheLastTime)
   ConsoleView v;
   v.status = engaged_status();  // time 100 s
   v.clock = "12:03:06";
-  v.clock_s = 12 * 3600 + 3 * 60 + 6;
+  v.clock_s = 12 * 3600 + 3 * 60 + 6.25;  // 12:03:06.25
   const std::int64_t now = v.status->time_ns();
   auto warning = [](std::int64_t t, const char* kind, const char* side, const char* message) {
     v1::Alarm a;
@@ -574,6 +574,11 @@ TEST(ConsoleScreen, FiftyRepeatedWarningsTakeOneEntryWithTheCountAndTheLastTime)
   EXPECT_EQ(lines[17], "         second overruns=3");
   EXPECT_EQ(lines[18], "  -10.5s ACTN oscillation slave: sustained -> lowered");
   EXPECT_EQ(lines[19], "  -20.5s WARN loss master: more than 1 % of peer states lost");
+  // A summary 0.5 s old at 12:03:06.25: the newest was 2.5 s ago, at 12:03:03.75.
+  v.status_age_ns = 500'000'000;
+  EXPECT_TRUE(contains(render_console(v, 24, 80), "x50 in 49s, last 12:03:03: loop"))
+      << joined(render_console(v, 24, 80));
+  v.status_age_ns = 0;
   // Replayed, the wall clock says nothing about the alarm: the count and span only.
   v.replay = true;
   EXPECT_TRUE(contains(render_console(v, 24, 80), "   -2.0s WARN overruns slave x50 in 49s: loop"))
@@ -589,6 +594,13 @@ TEST(ConsoleScreen, WithoutAHistoryTheSummarysOwnAlarmsAreGrouped) {
   const std::vector<std::string> lines = render_console(v, 24, 80);
   EXPECT_EQ(lines[15], "alarms (newest first): 20, shown as 1 with repeated warnings grouped");
   EXPECT_EQ(lines[16], "   -1.0s WARN loss slave x20 in 19s: lost");
+  // Another message of the same kind and side (another condition, e.g. two different
+  // commands) is an entry of its own.
+  v.status->mutable_recent_alarms(5)->set_message("lost again");
+  const std::vector<std::string> two = render_console(v, 24, 80);
+  EXPECT_EQ(two[15], "alarms (newest first): 20, shown as 2 with repeated warnings grouped");
+  EXPECT_EQ(two[16], "   -1.0s WARN loss slave x19 in 19s: lost");
+  EXPECT_EQ(two[17], "   -6.0s WARN loss slave: lost again");
 }
 
 TEST(AlarmHistory, KeepsEveryAlarmOnceAcrossSummariesOfTheNewestTwenty) {
