@@ -163,6 +163,7 @@ const std::array kRules{
     NamedRule{"teleop.v1.Supervisor.change_ramp_ms", non_negative(kMaxMs, "ms", kMsWhy)},
     NamedRule{"teleop.v1.Supervisor.passivity_power_threshold_W",
               positive(1e3, "W", "a kW is no longer a haptic power")},
+    NamedRule{"teleop.v1.Supervisor.max_sessions_MB", non_negative(1e9, "MB", "a petabyte")},
     // Scenes: ceilings only (their signs are the scene loader's, with its own messages).
     NamedRule{"teleop.v1.Scene.duration_s", {-kInf, 86400.0, false, "s", "a day of simulation"}},
     NamedRule{"teleop.v1.Scene.output_rate_hz", {-kInf, 1e6, false, "Hz", "a row per us"}},

@@ -1,5 +1,6 @@
 #include "common/config/system_compiler.hpp"
 
+#include <cmath>
 #include <numbers>
 #include <stdexcept>
 #include <utility>
@@ -40,6 +41,9 @@ SupervisorSettings supervisor_settings(const v1::SystemConfig& c, const NodeSetu
                                             : static_cast<double>(defaults::kEscalation.count());
   out.change_ramp_ms = s.has_change_ramp_ms() ? s.change_ramp_ms()
                                               : static_cast<double>(defaults::kChangeRamp.count());
+  out.max_sessions = s.has_max_sessions() ? s.max_sessions() : defaults::kMaxSessions;
+  out.max_sessions_bytes = static_cast<std::uint64_t>(std::llround(
+      (s.has_max_sessions_mb() ? s.max_sessions_mb() : defaults::kMaxSessions_MB) * 1e6));
   out.read_only_client_keys.assign(c.security().read_only_client_public_keys().begin(),
                                    c.security().read_only_client_public_keys().end());
   return out;

@@ -30,6 +30,9 @@ struct SupervisorSettings {
   double passivity_power_threshold_W{0.0};
   double escalation_ms{0.0};   // an alarm persisting this long lowers; this long again, disengage
   double change_ramp_ms{0.0};  // ramp of every accepted parameter change
+  // Session retention: files and bytes kept in the record directory (0: no limit).
+  std::uint32_t max_sessions{0};
+  std::uint64_t max_sessions_bytes{0};
   std::vector<std::string> read_only_client_keys{};  // security.read_only_client_public_keys
 };
 

@@ -79,6 +79,10 @@ inline constexpr double kPassivityPowerThreshold_W = 0.002;
 inline constexpr std::chrono::milliseconds kEscalation{500};
 // Ramp of every accepted parameter change.
 inline constexpr std::chrono::milliseconds kChangeRamp{200};
+// Session retention in the record directory: how many session files and how many MB are kept
+// (the oldest removed when a new session starts); 0: no limit.
+inline constexpr std::uint32_t kMaxSessions = 0;
+inline constexpr double kMaxSessions_MB = 0.0;
 
 // --- endpoints (loopback) --------------------------------------------------------------------
 

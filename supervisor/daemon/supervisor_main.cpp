@@ -16,6 +16,7 @@
 #include "common/core/command_line.hpp"
 #include "common/core/version.hpp"
 #include "common/record/session_recorder.hpp"
+#include "common/record/session_retention.hpp"
 #include "common/runtime/service_notify.hpp"
 #include "common/stability/analyzer.hpp"
 #include "supervisor/daemon/supervisor_app.hpp"
@@ -50,11 +51,25 @@ std::string read_config_text(const std::filesystem::path& path) {
 // The session file and the log file in `dir`. A directory that cannot be created or written
 // (read-only, a file in the way) is not fatal: the supervisor supervises without recording
 // and says why (options.record_failure, a CRITICAL alarm at start).
-void start_recording(const std::filesystem::path& dir, SupervisorOptions& options,
-                     std::vector<spdlog::sink_ptr>& sinks) {
+// A new session file in `dir`, then the retention policy applied around it (docs/supervisor.md
+// "Session retention"): the oldest sessions removed, never this one.
+std::unique_ptr<record::SessionSink> new_session(const std::filesystem::path& dir,
+                                                 const record::RetentionPolicy& policy) {
+  std::filesystem::create_directories(dir);
+  std::unique_ptr<record::SessionSink> sink = record::make_session_recorder(dir);
+  std::vector<std::string> failures;
+  for (const std::filesystem::path& p :
+       record::apply_retention(dir, policy, sink->file(), &failures)) {
+    spdlog::info("session retention: removed {}", p.string());
+  }
+  for (const std::string& f : failures) spdlog::warn("session retention: not removed: {}", f);
+  return sink;
+}
+
+void start_recording(const std::filesystem::path& dir, const record::RetentionPolicy& policy,
+                     SupervisorOptions& options, std::vector<spdlog::sink_ptr>& sinks) {
   try {
-    std::filesystem::create_directories(dir);
-    options.sink = record::make_session_recorder(dir);
+    options.sink = new_session(dir, policy);
   } catch (const std::exception& e) {
     options.sink.reset();
     options.record_failure = "cannot record in " + dir.string() + ": " + e.what();
@@ -149,11 +164,10 @@ int run_supervisor_main(int argc, char** argv) {
     options.config_text = read_config_text(config_path);
     std::vector<spdlog::sink_ptr> sinks{std::make_shared<spdlog::sinks::stderr_color_sink_mt>()};
     options.record_dir = dir.string();
-    options.new_sink = [dir] {
-      std::filesystem::create_directories(dir);
-      return record::make_session_recorder(dir);
-    };
-    if (recording) start_recording(dir, options, sinks);
+    const record::RetentionPolicy retention{system.supervisor().max_sessions,
+                                            system.supervisor().max_sessions_bytes};
+    options.new_sink = [dir, retention] { return new_session(dir, retention); };
+    if (recording) start_recording(dir, retention, options, sinks);
     auto logger = std::make_shared<spdlog::logger>("teleop-supervisor", sinks.begin(), sinks.end());
     logger->set_pattern("[%H:%M:%S.%e] [teleop-supervisor] [%^%l%$] %v");
     // Every line reaches the log file at once: a kill -9 keeps everything logged before it.

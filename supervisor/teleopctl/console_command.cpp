@@ -10,6 +10,8 @@
 #include <chrono>
 #include <optional>
 #include <regex>
+#include <tuple>
+#include <utility>
 #include <zmq.hpp>
 
 #include "common/config/config_loader.hpp"
@@ -35,13 +37,18 @@ std::int64_t monotonic_ns() {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-std::string wall_clock() {
-  const time_t now = time(nullptr);
+// The local wall clock: HH:MM:SS, and seconds since midnight with their fraction (so that an
+// alarm's wall-clock second, now minus its age, does not flicker between redraws).
+std::pair<std::string, double> wall_clock() {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  const time_t now = ts.tv_sec;
   tm local{};
   localtime_r(&now, &local);
   char text[16];
   strftime(text, sizeof(text), "%H:%M:%S", &local);
-  return text;
+  return {text, local.tm_hour * 3600.0 + local.tm_min * 60.0 + local.tm_sec +
+                    static_cast<double>(ts.tv_nsec) * 1e-9};
 }
 
 struct ConsoleArgs {
@@ -146,6 +153,8 @@ class Console {
   void accept(const v1::SupervisorStatus& s) {
     view_.status = s;
     received_ns_ = monotonic_ns();
+    alarms_.merge(s);
+    view_.alarm_history = alarms_.newest_first();
   }
 
   void say(std::string text) {
@@ -155,7 +164,7 @@ class Console {
 
   void draw(std::int64_t now) {
     view_.status_age_ns = view_.status ? now - received_ns_ : 0;
-    view_.clock = wall_clock();
+    std::tie(view_.clock, view_.clock_s) = wall_clock();
     int rows = 0;
     int cols = 0;
     getmaxyx(stdscr, rows, cols);
@@ -504,6 +513,7 @@ class Console {
   std::string master_command_;
   std::string slave_command_;
   ConsoleView view_{};
+  AlarmHistory alarms_{};
   std::int64_t received_ns_{0};
   bool quit_{false};
   bool prompting_{false};

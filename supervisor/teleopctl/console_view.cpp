@@ -71,6 +71,8 @@ std::string rt_text(const v1::RtStatus& rt) {
   return s;
 }
 
+bool stopped(const v1::NodeSummary& n) { return n.mode() == v1::SAFE || n.mode() == v1::FAULT; }
+
 std::string node_row(const char* name, const v1::NodeSummary& n) {
   if (n.mode() == v1::NODE_MODE_UNSPECIFIED && !n.alive() && n.loop().cycles() == 0) {
     return fmt::format("{:<6} -  (no telemetry yet)", name);
@@ -79,8 +81,8 @@ std::string node_row(const char* name, const v1::NodeSummary& n) {
       fmt::format("{:<6} {:<9} {:>6.1f} {:>5.0f}us {:>5}/{:<4} {:<14}", name, mode_name(n),
                   n.loop_rate_hz(), static_cast<double>(n.loop().wakeup_p99_ns()) * 1e-3,
                   n.loop().overruns(), n.overruns_last_minute(), pad(rt_text(n.rt()), 14));
-  if (n.mode() == v1::SAFE || n.mode() == v1::FAULT || !n.alive()) {
-    row += " " + n.mode_reason();
+  if (stopped(n) || !n.alive()) {
+    // The reason: add_node_rows.
   } else if (n.mode() == v1::ALIGNING) {
     // What the operator is being guided to close: alpha x_m - x_s.
     row += fmt::format(" x{:+6.2f}mm gap{:+6.2f}mm", n.position_m() * 1e3,
@@ -134,14 +136,115 @@ std::string short_severity(v1::Alarm::Severity s) {
   }
 }
 
-std::string alarm_row(const v1::Alarm& a, std::int64_t now_ns) {
+// A node's row, and its reason after it: on the row when it fits whole; else, for a node in
+// safe or fault (whose banner says the reason whole), a pointer to the banner; else on detail
+// rows under it, word-wrapped.
+void add_node_rows(std::vector<std::string>& lines, const char* name, const v1::NodeSummary& n,
+                   int cols) {
+  std::string row = node_row(name, n);
+  const std::string& reason = n.mode_reason();
+  if ((!stopped(n) && n.alive()) || reason.empty() ||
+      static_cast<int>(row.size() + 1 + reason.size()) <= cols) {
+    if ((stopped(n) || !n.alive()) && !reason.empty()) row += " " + reason;
+    lines.push_back(row);
+    return;
+  }
+  if (stopped(n)) {
+    lines.push_back(row + " (reason above)");
+    return;
+  }
+  lines.push_back(row);
+  constexpr std::size_t kDetailIndent = 7;  // under the state column
+  for (const std::string& w : wrap(reason, cols - static_cast<int>(kDetailIndent))) {
+    lines.push_back(std::string(kDetailIndent, ' ') + w);
+  }
+}
+
+// docs/cli.md "console": one banner per node in safe or fault, naming the reason whole
+// (wrapped); one for both when they stopped for the same reason.
+void add_stop_banners(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int cols) {
+  auto reason = [](const v1::NodeSummary& n) {
+    return (n.mode_reason().empty() ? std::string("no reason given") : n.mode_reason()) +
+           (n.alive() ? "" : " (last known: the node is silent)");
+  };
+  std::vector<std::string> banners;
+  const v1::NodeSummary& m = s.master();
+  const v1::NodeSummary& sl = s.slave();
+  if (stopped(m) && stopped(sl) && m.mode() == sl.mode() && reason(m) == reason(sl)) {
+    banners.push_back(
+        fmt::format("!! {} MASTER AND SLAVE: {}", v1::NodeMode_Name(m.mode()), reason(m)));
+  } else {
+    for (const auto& [side, n] : {std::pair{"MASTER", &m}, std::pair{"SLAVE", &sl}}) {
+      if (stopped(*n)) {
+        banners.push_back(
+            fmt::format("!! {} {}: {}", v1::NodeMode_Name(n->mode()), side, reason(*n)));
+      }
+    }
+  }
+  for (const std::string& b : banners) {
+    for (const std::string& w : wrap(b, cols, 3)) lines.push_back(w);
+  }
+}
+
+// One entry of the alarm list: an alarm, or a run of warnings of one kind, side and message
+// (the condition; the evidence may differ; not necessarily consecutive), shown as its newest
+// with the count.
+struct AlarmEntry {
+  const v1::Alarm* newest;
+  int count;
+  std::int64_t oldest_ns;
+};
+
+std::vector<AlarmEntry> group_alarms(const ConsoleView& view, const v1::SupervisorStatus& s) {
+  std::vector<const v1::Alarm*> all;
+  if (view.alarm_history.empty()) {
+    for (const v1::Alarm& a : s.recent_alarms()) all.push_back(&a);
+  } else {
+    for (const v1::Alarm& a : view.alarm_history) all.push_back(&a);
+  }
+  std::vector<AlarmEntry> out;
+  for (const v1::Alarm* a : all) {  // newest first
+    AlarmEntry* group = nullptr;
+    for (AlarmEntry& e : out) {
+      if (a->severity() == v1::Alarm::WARNING && e.newest->severity() == v1::Alarm::WARNING &&
+          e.newest->kind() == a->kind() && e.newest->side() == a->side() &&
+          e.newest->message() == a->message()) {
+        group = &e;
+        break;
+      }
+    }
+    if (group) {
+      ++group->count;
+      group->oldest_ns = a->time_ns();
+    } else {
+      out.push_back({a, 1, a->time_ns()});
+    }
+  }
+  return out;
+}
+
+std::string alarm_row(const AlarmEntry& entry, const ConsoleView& view, std::int64_t now_ns) {
+  const v1::Alarm& a = *entry.newest;
   std::string ev;
   for (const v1::Evidence& e : a.evidence()) {
     ev += fmt::format(" {}={:.3g}{}", e.name(), e.value(), e.unit());
   }
-  return fmt::format("{:>7.1f}s {} {} {}: {}{}{}",
+  std::string repeats;
+  if (entry.count > 1) {
+    repeats = fmt::format(" x{} in {:.0f}s", entry.count,
+                          static_cast<double>(a.time_ns() - entry.oldest_ns) * 1e-9);
+    // The newest on the wall clock, live only (a replay's alarms are of another day).
+    if (!view.replay && view.clock_s >= 0.0) {
+      const double age_s = static_cast<double>(now_ns - a.time_ns() + view.status_age_ns) * 1e-9;
+      // The second it happened in (1 us of slack for the subtraction's rounding).
+      const long at_s = std::lround(std::floor(view.clock_s - age_s + 1e-6));
+      const long wall = (at_s % 86400 + 86400) % 86400;
+      repeats += fmt::format(", last {:02}:{:02}:{:02}", wall / 3600, wall / 60 % 60, wall % 60);
+    }
+  }
+  return fmt::format("{:>7.1f}s {} {} {}{}: {}{}{}",
                      -static_cast<double>(now_ns - a.time_ns()) * 1e-9,
-                     short_severity(a.severity()), a.kind(), a.side(), a.message(), ev,
+                     short_severity(a.severity()), a.kind(), a.side(), repeats, a.message(), ev,
                      a.action().empty() ? "" : " -> " + a.action());
 }
 
@@ -200,6 +303,28 @@ std::vector<std::string> help_lines(bool replay) {
 }
 
 }  // namespace
+
+void AlarmHistory::merge(const v1::SupervisorStatus& s) {
+  if (s.time_ns() < last_status_ns_) alarms_.clear();
+  last_status_ns_ = s.time_ns();
+  std::vector<v1::Alarm> fresh;
+  for (const v1::Alarm& a : s.recent_alarms()) {  // newest first
+    // Older than the newest already kept: kept already (the summary came ten times a second).
+    if (!alarms_.empty() && a.time_ns() < alarms_.front().time_ns()) break;
+    if (!seen(a)) fresh.push_back(a);
+  }
+  alarms_.insert(alarms_.begin(), fresh.begin(), fresh.end());
+  if (alarms_.size() > capacity_) alarms_.resize(capacity_);
+}
+
+bool AlarmHistory::seen(const v1::Alarm& a) const {
+  const std::string bytes = a.SerializeAsString();
+  for (const v1::Alarm& h : alarms_) {
+    if (h.time_ns() < a.time_ns()) return false;  // newest first: only older ones from here
+    if (h.time_ns() == a.time_ns() && h.SerializeAsString() == bytes) return true;
+  }
+  return false;
+}
 
 std::string margin_bar(double configured, double maximum, int width) {
   const int inner = std::max(3, width - 2);
@@ -274,8 +399,8 @@ std::string header_line(const ConsoleView& view, const v1::SupervisorStatus& s, 
 }
 
 // Plots: positions, forces, penetration; 'm' master, 's' slave.
-void add_plots(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int cols) {
-  const int plot_rows = 4;
+void add_plots(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int rows, int cols) {
+  const int plot_rows = std::clamp(4 + (rows - 24) / 4, 4, 8);
   const int width = std::max(8, (cols - 2) / 3);
   struct Panel {
     const char* name;
@@ -289,7 +414,7 @@ void add_plots(std::vector<std::string>& lines, const v1::SupervisorStatus& s, i
       {"pen mm", &s.master().penetration_trace_m(), &s.slave().penetration_trace_m(), 1e3},
   };
   std::string titles;
-  std::vector<std::string> plot(plot_rows);
+  std::vector<std::string> plot(static_cast<std::size_t>(plot_rows));
   for (const Panel& p : panels) {
     const std::string sep = titles.empty() ? "" : " ";
     titles +=
@@ -353,17 +478,21 @@ std::string recorder_row(const v1::SupervisorStatus& s) {
 }
 
 // Everything between the banners and the alarms when the help is not shown.
-void add_system_rows(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int cols) {
+void add_system_rows(std::vector<std::string>& lines, const v1::SupervisorStatus& s,
+                     std::size_t alarms, std::size_t entries, int rows, int cols) {
   lines.push_back(fmt::format("{:<6} {:<9} {:>6} {:>7} {:>10} {:<14} {}", "node", "state",
                               "rate Hz", "wake p99", "overruns/1m", "RT", "now"));
-  lines.push_back(node_row("master", s.master()));
-  lines.push_back(node_row("slave", s.slave()));
+  add_node_rows(lines, "master", s.master(), cols);
+  add_node_rows(lines, "slave", s.slave(), cols);
   lines.push_back(link_row(s));
-  add_plots(lines, s, cols);
+  add_plots(lines, s, rows, cols);
   add_stability(lines, s.report(), cols);
   lines.push_back(monitors_row(s));
   lines.push_back(recorder_row(s));
-  lines.push_back(fmt::format("alarms (newest first): {}", s.recent_alarms_size()));
+  lines.push_back(fmt::format(
+      "alarms (newest first): {}{}", alarms,
+      entries < alarms ? fmt::format(", shown as {} with repeated warnings grouped", entries)
+                       : ""));
 }
 
 // Messages, bottom up: the prompt, then the newest message's rows, ... (word-wrapped), at most
@@ -383,11 +512,12 @@ std::vector<std::string> message_area(const ConsoleView& view, int cols) {
 }
 
 // Alarms, newest first, each on up to kAlarmRows rows while every later one still gets one.
-void add_alarms(std::vector<std::string>& lines, const v1::SupervisorStatus& s, int alarms,
-                int room, int cols) {
+void add_alarms(std::vector<std::string>& lines, const ConsoleView& view,
+                const std::vector<AlarmEntry>& entries, std::int64_t now_ns, int room, int cols) {
+  const int alarms = static_cast<int>(entries.size());
   for (int i = 0; i < alarms && room > 0; ++i) {
     const std::vector<std::string> rows_of =
-        wrap(alarm_row(s.recent_alarms(i), s.time_ns()), cols, kAlarmIndent);
+        wrap(alarm_row(entries[static_cast<std::size_t>(i)], view, now_ns), cols, kAlarmIndent);
     const int later = std::min(alarms - i - 1, room - 1);
     const int take =
         std::clamp(static_cast<int>(rows_of.size()), 1, std::min(kAlarmRows, room - later));
@@ -398,15 +528,16 @@ void add_alarms(std::vector<std::string>& lines, const v1::SupervisorStatus& s, 
 
 // What is left above the key line: the alarms, then the messages at the bottom.
 void add_alarms_and_messages(std::vector<std::string>& lines, const ConsoleView& view,
-                             const v1::SupervisorStatus& s, int rows, int cols) {
+                             const v1::SupervisorStatus& s, const std::vector<AlarmEntry>& entries,
+                             int rows, int cols) {
   const int free_rows = std::max(0, rows - static_cast<int>(lines.size()) - 1);
   std::vector<std::string> area = message_area(view, cols);
-  const int alarms = view.help ? 0 : s.recent_alarms_size();
+  const int alarms = view.help ? 0 : static_cast<int>(entries.size());
   const int message_rows =
       std::min(free_rows, std::clamp(static_cast<int>(area.size()), kMinMessageRows,
                                      std::max(kMinMessageRows, free_rows - alarms)));
   area.resize(static_cast<std::size_t>(std::max(0, message_rows)));
-  add_alarms(lines, s, alarms, free_rows - message_rows, cols);
+  if (alarms > 0) add_alarms(lines, view, entries, s.time_ns(), free_rows - message_rows, cols);
   while (static_cast<int>(lines.size()) < rows - message_rows - 1) lines.emplace_back("");
   for (auto l = area.rbegin(); l != area.rend(); ++l) lines.push_back(*l);
 }
@@ -426,7 +557,9 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
   std::vector<std::string> lines;
   const v1::SupervisorStatus empty;
   const v1::SupervisorStatus& s = view.status ? *view.status : empty;
+  const std::vector<AlarmEntry> entries = group_alarms(view, s);
   lines.push_back(header_line(view, s, cols));
+  add_stop_banners(lines, s, cols);
   // docs/nodes.md "Before engage": an experiment arming what the analysis refuses, and nodes whose
   // configurations differ, above everything else.
   if (!s.experiment_banner().empty()) lines.push_back("!! " + s.experiment_banner());
@@ -437,9 +570,12 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
     lines.emplace_back("");
     for (const std::string& l : help_lines(view.replay)) lines.push_back(l);
   } else {
-    add_system_rows(lines, s, cols);
+    const std::size_t alarms = view.alarm_history.empty()
+                                   ? static_cast<std::size_t>(s.recent_alarms_size())
+                                   : view.alarm_history.size();
+    add_system_rows(lines, s, alarms, entries.size(), rows, cols);
   }
-  add_alarms_and_messages(lines, view, s, rows, cols);
+  add_alarms_and_messages(lines, view, s, entries, rows, cols);
   lines.push_back(key_line(view));
   // Fit: at most `rows` lines (the key line kept last), each at most `cols` characters.
   if (static_cast<int>(lines.size()) > rows && rows > 0) {

@@ -4,6 +4,7 @@
 // rows out. ASCII only, no colour: it works in any 80x24 terminal.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -25,9 +26,40 @@ struct ConsoleView {
   // The line being typed (set, seek), shown with its prompt; empty: none.
   std::string prompt{};
   bool help{false};
-  std::string clock{};  // wall clock HH:MM:SS
+  std::string clock{};   // wall clock HH:MM:SS
+  double clock_s{-1.0};  // the same, seconds since midnight (with fractions); < 0: unknown
+  // Every alarm the console has seen, newest first (AlarmHistory); empty: the summary's own
+  // (its newest 20).
+  std::vector<v1::Alarm> alarm_history{};
 };
 
+// The alarms of every summary received, newest first, each once: the summary carries only the
+// supervisor's newest 20, so a burst of repeated warnings would otherwise push older alarms
+// out of sight. A summary whose clock went back (a replay seeked back) starts the history over.
+class AlarmHistory {
+ public:
+  explicit AlarmHistory(std::size_t capacity = 1000) : capacity_(capacity) {}
+  void merge(const v1::SupervisorStatus& s);
+  [[nodiscard]] const std::vector<v1::Alarm>& newest_first() const noexcept { return alarms_; }
+
+ private:
+  [[nodiscard]] bool seen(const v1::Alarm& a) const;
+  std::size_t capacity_;
+  std::vector<v1::Alarm> alarms_{};
+  std::int64_t last_status_ns_{0};
+};
+
+// The screen's layout (render_console), in rows:
+// - the header; then, each wrapped whole onto as many rows as it needs, a SAFE/FAULT banner
+//   per node in safe or fault (with its reason), the experiment banner, a configuration
+//   mismatch;
+// - the node table (a node's reason that does not fit its row continues on detail rows
+//   below it), the link, the plots (4 rows; one more per 4 rows the terminal has beyond 24, up
+//   to 8), stability, monitors, recorder, the alarm count;
+// - the alarms, newest first: warnings of one kind, side and message grouped into one entry
+//   ("x37", when the newest was), every other alarm on its own; every row the
+//   terminal has beyond these goes to the alarms;
+// - at least 3 message rows, then the key line.
 // The screen, `rows` lines of at most `cols` characters.
 [[nodiscard]] std::vector<std::string> render_console(const ConsoleView& view, int rows, int cols);
 

@@ -296,11 +296,12 @@ TEST(ConsoleScreen, APredictionAndItsVerdictAreBothWholeWhenTheAlarmsLeaveRoom) 
   EXPECT_EQ(lines[23].rfind("x E-STOP", 0), 0u);
 }
 
-v1::Alarm* add_alarm(v1::SupervisorStatus& s, std::int64_t time_ns, const std::string& message) {
+v1::Alarm* add_alarm(v1::SupervisorStatus& s, std::int64_t time_ns, const std::string& message,
+                     const std::string& kind = "oscillation") {
   v1::Alarm* a = s.add_recent_alarms();
   a->set_time_ns(time_ns);
   a->set_severity(v1::Alarm::WARNING);
-  a->set_kind("oscillation");
+  a->set_kind(kind);
   a->set_side("slave");
   a->set_message(message);
   return a;
@@ -326,10 +327,12 @@ TEST(ConsoleScreen, AnAlarmsEvidenceWrapsOntoASecondRowWhileTheRowsAllowIt) {
   EXPECT_EQ(lines[16], "   -2.0s WARN oscillation slave: sustained oscillation amplitude=0.541mm");
   EXPECT_EQ(lines[17], "         frequency=16Hz previous_amplitude=0.143mm");
 
-  // Seven alarms: the message area keeps its 3 rows, which leaves 7 - 3 = 4 rows, so the
-  // newest four alarms get one row each, newest first.
+  // Seven alarms (of different kinds: repeats of one kind would be grouped): the message area
+  // keeps its 3 rows, which leaves 7 - 3 = 4 rows, so the newest four alarms get one row each,
+  // newest first.
+  const char* kinds[] = {"heartbeat", "round_trip", "loss", "overruns", "passivity", "node_state"};
   for (int i = 1; i <= 6; ++i)
-    add_alarm(*v.status, 90'000'000'000 - i, "older " + std::to_string(i));
+    add_alarm(*v.status, 90'000'000'000 - i, "older " + std::to_string(i), kinds[i - 1]);
   v.messages = {"a message"};
   lines = render_console(v, 24, 80);
   ASSERT_EQ(lines.size(), 24u);
@@ -407,6 +410,242 @@ TEST(ConsoleScreen, ASmallTerminalGetsAsManyRowsAsItHasKeysLast) {
   for (const std::string& l : lines) EXPECT_LE(l.size(), 40u);
   EXPECT_EQ(lines.back().rfind("x E-STOP", 0), 0u);
   EXPECT_TRUE(has_line_starting(lines, "master ENGAGED")) << joined(lines);
+}
+
+// Issue 17: a node in fault or safe is said in a banner under the header, its reason whole
+// (word-wrapped, continuation rows indented 3), and the node row points to it when the reason
+// does not fit the row.
+TEST(ConsoleScreen, SafeAndFaultBannersCarryTheWholeReasonAt80x24) {
+  ConsoleView v;
+  v.status = engaged_status();
+  const std::string reason =
+      "encoder jump of 812 counts in one cycle (limit 64): the position reading is not "
+      "trusted; check the encoder cable and its supply, then clear";
+  v.status->mutable_master()->set_mode(v1::FAULT);
+  v.status->mutable_master()->set_mode_reason(reason);
+  v.status->mutable_slave()->set_mode(v1::SAFE);
+  v.status->mutable_slave()->set_mode_reason("peer silent for 30 ms");
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u) << joined(lines);
+  for (const std::string& l : lines) EXPECT_LE(l.size(), 80u) << l;
+  // "!! FAULT MASTER: " + reason is 156 characters: the last space within 80 is after "the"
+  // (72); the next row's 77 columns end exactly at "then" (3 + 77 = 80); "clear" is left.
+  EXPECT_EQ(lines[1], "!! FAULT MASTER: encoder jump of 812 counts in one cycle (limit 64): the");
+  EXPECT_EQ(lines[2],
+            "   position reading is not trusted; check the encoder cable and its supply, then");
+  EXPECT_EQ(lines[3], "   clear");
+  EXPECT_EQ(lines[4], "!! SAFE SLAVE: peer silent for 30 ms");
+  // The node rows: 57 columns before the reason; the master's 156 do not fit (a pointer to the
+  // banner), the slave's 1 + 21 do (79).
+  EXPECT_EQ(lines[6].rfind("master FAULT", 0), 0u) << lines[6];
+  EXPECT_EQ(lines[6].substr(57), " (reason above)");
+  EXPECT_EQ(lines[7].rfind("slave  SAFE", 0), 0u) << lines[7];
+  EXPECT_EQ(lines[7].substr(57), " peer silent for 30 ms");
+  EXPECT_TRUE(has_line_starting(lines, "stability STABLE")) << joined(lines);
+  EXPECT_EQ(lines.back().rfind("x E-STOP", 0), 0u);
+
+  // Both stopped for one reason: one banner.
+  v.status->mutable_master()->set_mode(v1::SAFE);
+  v.status->mutable_master()->set_mode_reason("e-stop");
+  v.status->mutable_slave()->set_mode_reason("e-stop");
+  const std::vector<std::string> both = render_console(v, 24, 80);
+  EXPECT_EQ(both[1], "!! SAFE MASTER AND SLAVE: e-stop");
+  EXPECT_EQ(both[2].rfind("node ", 0), 0u) << joined(both);
+  // Engaged: no banner.
+  v.status->mutable_master()->set_mode(v1::ENGAGED);
+  v.status->mutable_slave()->set_mode(v1::ENGAGED);
+  EXPECT_FALSE(contains(render_console(v, 24, 80), "!! ")) << joined(render_console(v, 24, 80));
+}
+
+TEST(ConsoleScreen, ASilentNodesLongReasonContinuesOnDetailRows) {
+  // Not safe or fault (no banner): the reason goes on rows of its own under the state column
+  // (7 in), wrapped to 73 columns.
+  ConsoleView v;
+  v.status = engaged_status();
+  v.status->mutable_slave()->set_alive(false);
+  v.status->mutable_slave()->set_mode_reason(
+      "no telemetry from tcp://10.0.0.2:5565 for 2.0 s (the node stopped, or a firewall drops "
+      "the port)");
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  EXPECT_EQ(lines[3].rfind("slave  SILENT", 0), 0u) << joined(lines);
+  EXPECT_EQ(lines[3].size(), 57u) << lines[3];
+  EXPECT_EQ(lines[4],
+            "       no telemetry from tcp://10.0.0.2:5565 for 2.0 s (the node stopped, or a");
+  EXPECT_EQ(lines[5], "       firewall drops the port)");
+  EXPECT_EQ(lines[6].rfind("link ", 0), 0u);
+}
+
+// ACTION alarms (never grouped) m1 (1 s old) .. mN, newest first.
+std::vector<v1::Alarm> distinct_alarms(std::int64_t now_ns, int n) {
+  std::vector<v1::Alarm> out;
+  for (int i = 1; i <= n; ++i) {
+    v1::Alarm a;
+    a.set_time_ns(now_ns - i * 1'000'000'000LL);
+    a.set_severity(v1::Alarm::ACTION);
+    a.set_kind("oscillation");
+    a.set_side("slave");
+    a.set_message("m" + std::to_string(i));
+    out.push_back(a);
+  }
+  return out;
+}
+
+TEST(ConsoleScreen, ATallerTerminalGivesThePlotsAndTheAlarmsTheExtraRows) {
+  ConsoleView v;
+  v.status = engaged_status();
+  v.alarm_history = distinct_alarms(v.status->time_ns(), 30);
+  // 80x24: 16 rows before the alarms (header 1, table 3, link 1, titles 1 + plot 4,
+  // stability 3, monitors, recorder, count), the key line, 3 message rows: 4 alarm rows.
+  std::vector<std::string> lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u);
+  EXPECT_EQ(lines[10].rfind("stability STABLE", 0), 0u) << joined(lines);
+  EXPECT_EQ(lines[15], "alarms (newest first): 30");
+  EXPECT_EQ(lines[16], "   -1.0s ACTN oscillation slave: m1");
+  EXPECT_EQ(lines[19], "   -4.0s ACTN oscillation slave: m4");
+  EXPECT_EQ(lines[20], "");
+  EXPECT_EQ(
+      std::count_if(lines.begin(), lines.end(),
+                    [](const std::string& l) { return l.find(" ACTN ") != std::string::npos; }),
+      4);
+  // 100x40: 16 rows more; the plots take 4 of them ((40 - 24) / 4, to 8 rows), the alarms
+  // the other 12: 20 rows before the alarms, 40 - 20 - 1 - 3 = 16 alarm rows.
+  lines = render_console(v, 40, 100);
+  ASSERT_EQ(lines.size(), 40u);
+  for (const std::string& l : lines) EXPECT_LE(l.size(), 100u) << l;
+  EXPECT_EQ(lines[5].rfind("x mm", 0), 0u) << joined(lines);
+  EXPECT_EQ(lines[14].rfind("stability STABLE", 0), 0u) << joined(lines);
+  EXPECT_EQ(lines[19], "alarms (newest first): 30");
+  EXPECT_EQ(lines[20], "   -1.0s ACTN oscillation slave: m1");
+  EXPECT_EQ(lines[35], "  -16.0s ACTN oscillation slave: m16");
+  EXPECT_EQ(lines[36], "");
+  EXPECT_EQ(lines[39].rfind("x E-STOP", 0), 0u);
+  // The plots' panels are (100 - 2) / 3 = 32 wide.
+  EXPECT_EQ(lines[6].size(), 32u * 3 + 2);
+}
+
+TEST(ConsoleScreen, FiftyRepeatedWarningsTakeOneEntryWithTheCountAndTheLastTime) {
+  ConsoleView v;
+  v.status = engaged_status();  // time 100 s
+  v.clock = "12:03:06";
+  v.clock_s = 12 * 3600 + 3 * 60 + 6.25;  // 12:03:06.25
+  const std::int64_t now = v.status->time_ns();
+  auto warning = [](std::int64_t t, const char* kind, const char* side, const char* message) {
+    v1::Alarm a;
+    a.set_time_ns(t);
+    a.set_severity(v1::Alarm::WARNING);
+    a.set_kind(kind);
+    a.set_side(side);
+    a.set_message(message);
+    return a;
+  };
+  // 50 overrun warnings once a second, 2 s to 51 s old; an action 10.5 s old and a loss
+  // warning 20.5 s old among them; newest first.
+  for (int k = 0; k < 50; ++k) {
+    const std::int64_t t = now - 2'000'000'000LL - k * 1'000'000'000LL;
+    if (k == 9) {
+      v1::Alarm act;
+      act.set_time_ns(now - 10'500'000'000LL);
+      act.set_severity(v1::Alarm::ACTION);
+      act.set_kind("oscillation");
+      act.set_side("slave");
+      act.set_message("sustained");
+      act.set_action("lowered");
+      v.alarm_history.push_back(act);
+    }
+    if (k == 19) {
+      v.alarm_history.push_back(
+          warning(now - 20'500'000'000LL, "loss", "master", "more than 1 % of peer states lost"));
+    }
+    v1::Alarm a = warning(t, "overruns", "slave", "loop overran in the last second");
+    v1::Evidence* e = a.add_evidence();
+    e->set_name("overruns");
+    e->set_value(3);
+    v.alarm_history.push_back(a);
+  }
+  ASSERT_EQ(v.alarm_history.size(), 52u);
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  ASSERT_EQ(lines.size(), 24u) << joined(lines);
+  EXPECT_EQ(lines[15], "alarms (newest first): 52, shown as 3 with repeated warnings grouped");
+  // The newest overrun 2 s before 12:03:06; the first 49 s before it. 98 characters: the
+  // last space within 80 is the one after "last" (80), the rest 9 in. Three entries in four
+  // rows: the first gets two.
+  EXPECT_EQ(lines[16],
+            "   -2.0s WARN overruns slave x50 in 49s, last 12:03:04: loop overran in the last");
+  EXPECT_EQ(lines[17], "         second overruns=3");
+  EXPECT_EQ(lines[18], "  -10.5s ACTN oscillation slave: sustained -> lowered");
+  EXPECT_EQ(lines[19], "  -20.5s WARN loss master: more than 1 % of peer states lost");
+  // A summary 0.5 s old at 12:03:06.25: the newest was 2.5 s ago, at 12:03:03.75.
+  v.status_age_ns = 500'000'000;
+  EXPECT_TRUE(contains(render_console(v, 24, 80), "x50 in 49s, last 12:03:03: loop"))
+      << joined(render_console(v, 24, 80));
+  v.status_age_ns = 0;
+  // Replayed, the wall clock says nothing about the alarm: the count and span only.
+  v.replay = true;
+  EXPECT_TRUE(contains(render_console(v, 24, 80), "   -2.0s WARN overruns slave x50 in 49s: loop"))
+      << joined(render_console(v, 24, 80));
+}
+
+TEST(ConsoleScreen, WithoutAHistoryTheSummarysOwnAlarmsAreGrouped) {
+  ConsoleView v;
+  v.status = engaged_status();
+  for (int k = 0; k < 20; ++k) {
+    add_alarm(*v.status, v.status->time_ns() - (k + 1) * 1'000'000'000LL, "lost", "loss");
+  }
+  const std::vector<std::string> lines = render_console(v, 24, 80);
+  EXPECT_EQ(lines[15], "alarms (newest first): 20, shown as 1 with repeated warnings grouped");
+  EXPECT_EQ(lines[16], "   -1.0s WARN loss slave x20 in 19s: lost");
+  // Another message of the same kind and side (another condition, e.g. two different
+  // commands) is an entry of its own.
+  v.status->mutable_recent_alarms(5)->set_message("lost again");
+  const std::vector<std::string> two = render_console(v, 24, 80);
+  EXPECT_EQ(two[15], "alarms (newest first): 20, shown as 2 with repeated warnings grouped");
+  EXPECT_EQ(two[16], "   -1.0s WARN loss slave x19 in 19s: lost");
+  EXPECT_EQ(two[17], "   -6.0s WARN loss slave: lost again");
+}
+
+TEST(AlarmHistory, KeepsEveryAlarmOnceAcrossSummariesOfTheNewestTwenty) {
+  // 100 alarms, one a second; a summary every 5 s carries the newest 20 so far (as the
+  // supervisor's status does): the history ends with all 100, newest first, each once.
+  AlarmHistory h;
+  for (int t = 5; t <= 100; t += 5) {
+    v1::SupervisorStatus s;
+    s.set_time_ns(t * 1'000'000'000LL);
+    for (int i = t; i >= std::max(1, t - 19); --i) {
+      add_alarm(s, i * 1'000'000'000LL, "a" + std::to_string(i), "overruns");
+    }
+    h.merge(s);
+    h.merge(s);  // the same summary twice adds nothing
+  }
+  ASSERT_EQ(h.newest_first().size(), 100u);
+  for (int i = 0; i < 100; ++i) {
+    EXPECT_EQ(h.newest_first()[static_cast<std::size_t>(i)].message(),
+              "a" + std::to_string(100 - i));
+  }
+  // Two alarms at the same instant are two alarms.
+  v1::SupervisorStatus s;
+  s.set_time_ns(101'000'000'000LL);
+  add_alarm(s, 101'000'000'000LL, "x", "loss");
+  add_alarm(s, 101'000'000'000LL, "y", "loss");
+  h.merge(s);
+  EXPECT_EQ(h.newest_first().size(), 102u);
+  // A replay seeked back (the summary's clock went back): the history starts over.
+  v1::SupervisorStatus back;
+  back.set_time_ns(30'000'000'000LL);
+  add_alarm(back, 29'000'000'000LL, "a29", "overruns");
+  h.merge(back);
+  ASSERT_EQ(h.newest_first().size(), 1u);
+  EXPECT_EQ(h.newest_first()[0].message(), "a29");
+}
+
+TEST(AlarmHistory, HoldsAtMostItsCapacityDroppingTheOldest) {
+  AlarmHistory h(10);
+  v1::SupervisorStatus s;
+  s.set_time_ns(50'000'000'000LL);
+  for (int i = 20; i >= 1; --i) add_alarm(s, i * 1'000'000'000LL, "a" + std::to_string(i));
+  h.merge(s);
+  ASSERT_EQ(h.newest_first().size(), 10u);
+  EXPECT_EQ(h.newest_first().front().message(), "a20");
+  EXPECT_EQ(h.newest_first().back().message(), "a11");
 }
 
 }  // namespace
