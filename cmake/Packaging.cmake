@@ -11,6 +11,10 @@
 #   lib/sysusers.d/teleop.conf, lib/tmpfiles.d/teleop.conf, lib/udev/rules.d/70-teleop.rules
 #   share/man/man1/{teleopctl,teleop-master,teleop-slave,teleop-supervisor}.1  (help2man)
 #   share/bash-completion/completions/{the same four names}
+#   share/teleop/proto/teleop/v1/*.proto, share/teleop/proto/foxglove/*.proto and
+#     share/teleop/proto/teleop.desc (their FileDescriptorSet, imports included)
+#   lib/python3/dist-packages/teleop.<abi>.so   the Python module (TELEOP_PYTHON_INSTALL_DIR,
+#     python/CMakeLists.txt), when built (TELEOP_BUILD_PYTHON)
 # Nothing goes to /etc: the units read /etc/teleop/{master,slave,supervisor}.textproto, which
 # the administrator writes (from the examples); the package has no conffiles.
 include(GNUInstallDirs)
@@ -27,6 +31,9 @@ install(TARGETS teleop-master teleop-slave teleop-supervisor teleopctl
         RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/examples/" DESTINATION ${CMAKE_INSTALL_DATADIR}/teleop/examples)
 install(FILES "${PROJECT_SOURCE_DIR}/README.md" DESTINATION ${CMAKE_INSTALL_DOCDIR})
+install(DIRECTORY "${PROJECT_SOURCE_DIR}/proto/" DESTINATION ${CMAKE_INSTALL_DATADIR}/teleop/proto
+        FILES_MATCHING PATTERN "*.proto")
+install(FILES "${PROJECT_BINARY_DIR}/proto/teleop.desc" DESTINATION ${CMAKE_INSTALL_DATADIR}/teleop/proto)
 install(DIRECTORY "${PROJECT_SOURCE_DIR}/docs/" DESTINATION ${CMAKE_INSTALL_DOCDIR}/docs
         FILES_MATCHING PATTERN "*.md")
 install(FILES "${_teleop_deploy}/systemd/teleop-master.service"
@@ -110,6 +117,10 @@ Includes systemd units (installed disabled) and example configurations in
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 # systemd-sysusers creates the user when present; useradd (passwd) otherwise.
 set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "systemd")
+if(TELEOP_BUILD_PYTHON)
+  # The module (python/) runs in Debian's python3 and returns numpy arrays.
+  set(CPACK_DEBIAN_PACKAGE_SUGGESTS "python3, python3-numpy")
+endif()
 set(CPACK_DEBIAN_PACKAGE_CONTROL_EXTRA
     "${_teleop_deploy}/debian/postinst" "${_teleop_deploy}/debian/prerm"
     "${_teleop_deploy}/debian/postrm")

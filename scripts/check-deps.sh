@@ -2,7 +2,7 @@
 # Fails if a product source includes a directory that is not below its own in the layer table
 # (docs/architecture.md §3.1), or if a library that must stay free of protobuf includes it
 # (§3.2). Scans every `#include "..."` (and `#include <...>` naming a project directory) in
-# common/, supervisor/, master_node/ and slave_node/; proto/ is generated, and its headers
+# common/, supervisor/, master_node/, slave_node/ and python/; proto/ is generated, and its headers
 # (teleop/v1/*.pb.h) count as the bottom layer. Needs python3 only, which Debian installs with
 # clang-format (check-format.sh).
 #
@@ -37,12 +37,13 @@ LAYERS = [
     ["common/runtime", "common/session"],
     ["supervisor/core"],
     ["supervisor/daemon", "supervisor/teleopctl", "master_node", "slave_node"],
+    ["python"],
 ]
 # The real-time side and the plain-data libraries see no protobuf (docs/architecture.md §3.2).
 NO_PROTOBUF = ["common/core", "common/control", "common/stability", "common/sim",
                "common/device", "common/rt", "common/scene", "common/node", "common/bridge"]
 
-SCANNED = ["common", "supervisor", "master_node", "slave_node"]
+SCANNED = ["common", "supervisor", "master_node", "slave_node", "python"]
 # Top-level directories of the repository that are not product code: never included by it.
 NOT_PRODUCT = ["tests", "bench", "fuzz", "scripts", "examples", "deploy", "docs", "cmake"]
 SOURCE = (".cpp", ".hpp", ".h", ".cc", ".hh", ".cxx", ".ipp", ".inc")
@@ -58,7 +59,7 @@ def directory_of(path):
         return "proto"
     if parts[0] in ("common", "supervisor") and len(parts) > 2:
         return parts[0] + "/" + parts[1]
-    if parts[0] in ("master_node", "slave_node", "proto") and len(parts) > 1:
+    if parts[0] in ("master_node", "slave_node", "proto", "python") and len(parts) > 1:
         return parts[0]
     return None
 

@@ -8,6 +8,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libncurses-dev tmux jq
   libsystemd-dev systemd dpkg-dev iproute2 python3 help2man
   libwebsocketpp-dev libasio-dev
+  python3-dev pybind11-dev python3-pybind11 python3-numpy
 )
 missing=()
 for p in "${packages[@]}"; do

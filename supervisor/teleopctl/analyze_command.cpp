@@ -21,26 +21,6 @@ namespace {
 using nlohmann::json;
 using stability::Side;
 
-Sweep parse_sweep(const std::string& spec) {
-  const std::size_t eq = spec.find('=');
-  if (eq == std::string::npos || eq == 0) {
-    throw UsageError(fmt::format("--sweep '{}': expected PATH=FROM:TO:STEP", spec));
-  }
-  const std::vector<std::string> range = split(spec.substr(eq + 1), ':');
-  if (range.size() != 3) {
-    throw UsageError(fmt::format("--sweep '{}': expected PATH=FROM:TO:STEP", spec));
-  }
-  Sweep s{spec.substr(0, eq), parse_number(range[0], "--sweep FROM"),
-          parse_number(range[1], "--sweep TO"), parse_number(range[2], "--sweep STEP")};
-  if (s.step <= 0.0 || s.to < s.from) {
-    throw UsageError(fmt::format("--sweep '{}': need STEP > 0 and TO >= FROM", spec));
-  }
-  if ((s.to - s.from) / s.step > 10000.0) {
-    throw UsageError(fmt::format("--sweep '{}': more than 10000 points", spec));
-  }
-  return s;
-}
-
 std::string fmt_opt(const std::optional<double>& v, const char* unit) {
   return v ? fmt::format("{:.6g} {}", *v, unit) : std::string("none");
 }
@@ -103,60 +83,77 @@ int run_force_loop(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std
   return kExitStable;
 }
 
+}  // namespace
+
+LimitsDocument limits_document(const config::LoadedConfig& cfg, Side side,
+                               const std::vector<double>& rates_hz,
+                               const std::optional<Sweep>& sweep,
+                               const std::function<void(std::size_t, std::size_t)>& progress) {
+  const char* side_name = side == Side::kMaster ? "master" : "slave";
+  const TeleopParams base = config::to_teleop_params(cfg);
+  std::vector<double> rates = rates_hz;
+  if (rates.empty()) rates.push_back(base.sample_rate_hz);
+  std::vector<std::optional<double>> sweep_values{std::nullopt};
+  if (sweep) {
+    sweep_values.clear();
+    for (const double v : sweep->values()) sweep_values.emplace_back(v);
+  }
+
+  LimitsDocument d;
+  json limits = json::array();
+  const std::size_t points = sweep_values.size() * rates.size();
+  std::size_t done = 0;
+  for (const auto& sv : sweep_values) {
+    Series line;
+    line.label = sv ? fmt::format("{} = {:g}", sweep->path, *sv) : std::string(side_name);
+    for (const double rate : rates) {
+      std::vector<std::string> sets{"sample_rate_hz=" + number_text(rate)};
+      if (sv) sets.push_back(sweep->path + "=" + number_text(*sv));
+      const TeleopParams p = params_with(cfg, sets);
+      const stability::StiffnessLimit l = stability::max_stable_stiffness(p, side);
+      d.any_invalid = d.any_invalid || l.invalid;
+      json j = limit_json(l, side, rate);
+      if (sv) j[sweep->path] = *sv;
+      limits.push_back(j);
+      const double x = (sweep && rates.size() == 1) ? *sv : rate;
+      line.points.emplace_back(x, l.max_stable_stiffness_N_per_m.value_or(std::nan("")));
+      if (progress) progress(++done, points);
+    }
+    d.series.push_back(std::move(line));
+  }
+  if (sweep && rates.size() == 1) {
+    // One rate, one swept value: a single curve against the swept parameter.
+    Series merged{fmt::format("{} fixture limit", side_name), {}};
+    for (const Series& s : d.series)
+      merged.points.insert(merged.points.end(), s.points.begin(), s.points.end());
+    d.series = {merged};
+  }
+  d.document = json{{"side", side_name},
+                    {"swept", sweep ? json(sweep->path) : json(nullptr)},
+                    {"required_damping_ratio", base.analysis.required_damping_ratio},
+                    {"stiffness_tolerance_N_per_m", base.analysis.stiffness_tolerance_N_per_m},
+                    {"limits", limits}};
+  return d;
+}
+
+namespace {
+
 int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::ostream& out,
                std::ostream& err) {
   const Side side = *o.max_stiffness_side;
   const char* side_name = side == Side::kMaster ? "master" : "slave";
   const TeleopParams base = config::to_teleop_params(cfg);
-  std::vector<double> rates = o.rates_hz;
-  if (rates.empty()) rates.push_back(base.sample_rate_hz);
-  std::vector<std::optional<double>> sweep_values{std::nullopt};
-  if (o.sweep) {
-    sweep_values.clear();
-    for (const double v : o.sweep->values()) sweep_values.emplace_back(v);
-  }
-
-  json limits = json::array();
-  std::vector<Series> series;
-  bool any_invalid = false;  // a point whose model is not finite: the run fails
   // A big sweep takes seconds: its progress on a terminal.
   ProgressLine progress(err, "analyze --max-stiffness", !o.json && stderr_is_terminal());
-  const std::size_t points = sweep_values.size() * rates.size();
-  std::size_t done = 0;
-  for (const auto& sv : sweep_values) {
-    Series line;
-    line.label = sv ? fmt::format("{} = {:g}", o.sweep->path, *sv) : std::string(side_name);
-    for (const double rate : rates) {
-      std::vector<std::string> sets{"sample_rate_hz=" + number_text(rate)};
-      if (sv) sets.push_back(o.sweep->path + "=" + number_text(*sv));
-      const TeleopParams p = params_with(cfg, sets);
-      const stability::StiffnessLimit l = stability::max_stable_stiffness(p, side);
-      any_invalid = any_invalid || l.invalid;
-      json j = limit_json(l, side, rate);
-      if (sv) j[o.sweep->path] = *sv;
-      limits.push_back(j);
-      const double x = (o.sweep && rates.size() == 1) ? *sv : rate;
-      line.points.emplace_back(x, l.max_stable_stiffness_N_per_m.value_or(std::nan("")));
-      progress.update(++done, points);
-    }
-    series.push_back(std::move(line));
-  }
-  if (o.sweep && rates.size() == 1) {
-    // One rate, one swept value: a single curve against the swept parameter.
-    Series merged{fmt::format("{} fixture limit", side_name), {}};
-    for (const Series& s : series)
-      merged.points.insert(merged.points.end(), s.points.begin(), s.points.end());
-    series = {merged};
-  }
+  LimitsDocument d =
+      limits_document(cfg, side, o.rates_hz, o.sweep,
+                      [&](std::size_t done, std::size_t points) { progress.update(done, points); });
+  const json& limits = d.document["limits"];
+  std::vector<Series>& series = d.series;
+  const bool any_invalid = d.any_invalid;
 
   if (o.json) {
-    out << json{{"side", side_name},
-                {"swept", o.sweep ? json(o.sweep->path) : json(nullptr)},
-                {"required_damping_ratio", base.analysis.required_damping_ratio},
-                {"stiffness_tolerance_N_per_m", base.analysis.stiffness_tolerance_N_per_m},
-                {"limits", limits}}
-               .dump(2)
-        << "\n";
+    out << d.document.dump(2) << "\n";
   } else {
     out << fmt::format(
         "maximum stable {} fixture stiffness (required damping ratio {:g}, tolerance {:g} N/m, "
@@ -184,7 +181,7 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
   if (o.plot_path) {
     Chart chart;
     chart.title = fmt::format("Maximum stable {} fixture stiffness", side_name);
-    chart.x_label = (o.sweep && rates.size() == 1) ? o.sweep->path : "sample rate (Hz)";
+    chart.x_label = (o.sweep && o.rates_hz.size() <= 1) ? o.sweep->path : "sample rate (Hz)";
     chart.y_label = "stiffness (N/m)";
     const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
     for (std::size_t i = 0; i < series.size(); ++i) series[i].colour = colours[i % 6];
@@ -259,6 +256,36 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
 }
 
 }  // namespace
+
+Sweep parse_sweep(const std::string& spec) {
+  const std::size_t eq = spec.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw UsageError(fmt::format("--sweep '{}': expected PATH=FROM:TO:STEP", spec));
+  }
+  const std::vector<std::string> range = split(spec.substr(eq + 1), ':');
+  if (range.size() != 3) {
+    throw UsageError(fmt::format("--sweep '{}': expected PATH=FROM:TO:STEP", spec));
+  }
+  Sweep s{spec.substr(0, eq), parse_number(range[0], "--sweep FROM"),
+          parse_number(range[1], "--sweep TO"), parse_number(range[2], "--sweep STEP")};
+  if (s.step <= 0.0 || s.to < s.from) {
+    throw UsageError(fmt::format("--sweep '{}': need STEP > 0 and TO >= FROM", spec));
+  }
+  if ((s.to - s.from) / s.step > 10000.0) {
+    throw UsageError(fmt::format("--sweep '{}': more than 10000 points", spec));
+  }
+  return s;
+}
+
+nlohmann::json analysis_document(const config::LoadedConfig& cfg) {
+  const TeleopParams p = config::to_teleop_params(cfg);
+  return analysis_json(stability::analyze(p), p);
+}
+
+nlohmann::json force_loop_document(const config::LoadedConfig& cfg) {
+  const ForceLoopParams p = config::to_force_loop_params(cfg);
+  return force_loop_json(stability::analyze_force_loop(p), p);
+}
 
 std::vector<double> Sweep::values() const {
   std::vector<double> v;

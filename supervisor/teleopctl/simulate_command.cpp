@@ -384,6 +384,37 @@ void write_plot(const std::string& path, const scene::SimulationResult& r) {
 
 }  // namespace
 
+json simulation_document(const config::LoadedConfig& cfg, const scene::SceneSetup& setup,
+                         const scene::SimulationResult& r) {
+  const scene::SimulationSummary& s = r.summary;
+  json j = {{"scene", cfg.source_name},
+            {"kind", s.kind},
+            {"duration_s", s.duration_s},
+            {"steps", s.steps},
+            {"ideal", setup.ideal},
+            {"seed", setup.seed},
+            {"max_penetration_master_m", s.max_penetration_master_m},
+            {"max_penetration_slave_m", s.max_penetration_slave_m},
+            {"tracking_error_rms_m", s.tracking_error_rms_m},
+            {"force_error_rms_N", s.force_error_rms_N},
+            {"force_error_peak_N", s.force_error_peak_N},
+            {"parasitic_force_peak_N", s.parasitic_force_peak_N},
+            {"oscillation", oscillation_json(s.oscillation)},
+            {"fault", s.fault},
+            {"wall_time_s", s.wall_time_s},
+            {"real_time_factor", s.real_time_factor}};
+  if (s.kind == "bilateral") {
+    j["master_oscillation"] = oscillation_json(s.master_oscillation);
+    // What the analyser predicts for this loop with its fixtures engaged.
+    const TeleopParams& p = setup.teleop;
+    const stability::AnalysisResult a = stability::analyze(p);
+    j["predicted"] = {{"verdict", stability::to_string(a.verdict)},
+                      {"min_damping_ratio", a.min_damping_ratio},
+                      {"spectral_radius", a.spectral_radius}};
+  }
+  return j;
+}
+
 std::string simulate_usage() {
   return "usage: teleopctl simulate SCENE [--duration S] [--seed N] [--set PATH=VALUE]...\n"
          "                          [--out FILE.csv|FILE.mcap] [--log-start-ns N]\n"
@@ -464,31 +495,7 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     }
     const scene::SimulationSummary& s = r.summary;
 
-    json j = {{"scene", cfg.source_name},
-              {"kind", s.kind},
-              {"duration_s", s.duration_s},
-              {"steps", s.steps},
-              {"ideal", setup.ideal},
-              {"seed", setup.seed},
-              {"max_penetration_master_m", s.max_penetration_master_m},
-              {"max_penetration_slave_m", s.max_penetration_slave_m},
-              {"tracking_error_rms_m", s.tracking_error_rms_m},
-              {"force_error_rms_N", s.force_error_rms_N},
-              {"force_error_peak_N", s.force_error_peak_N},
-              {"parasitic_force_peak_N", s.parasitic_force_peak_N},
-              {"oscillation", oscillation_json(s.oscillation)},
-              {"fault", s.fault},
-              {"wall_time_s", s.wall_time_s},
-              {"real_time_factor", s.real_time_factor}};
-    if (s.kind == "bilateral") {
-      j["master_oscillation"] = oscillation_json(s.master_oscillation);
-      // What the analyser predicts for this loop with its fixtures engaged.
-      const TeleopParams& p = setup.teleop;
-      const stability::AnalysisResult a = stability::analyze(p);
-      j["predicted"] = {{"verdict", stability::to_string(a.verdict)},
-                        {"min_damping_ratio", a.min_damping_ratio},
-                        {"spectral_radius", a.spectral_radius}};
-    }
+    const json j = simulation_document(cfg, setup, r);
     if (o.json) {
       out << j.dump(2) << "\n";
     } else {

@@ -3,9 +3,13 @@
 
 #include <cstdint>
 #include <iosfwd>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
 #include <vector>
+
+#include "common/config/config_loader.hpp"
+#include "common/scene/lockstep.hpp"
 
 namespace teleop::ctl {
 
@@ -20,6 +24,12 @@ struct SimulateOptions {
   std::optional<std::int64_t> log_start_ns{};
   bool json{false};
 };
+
+// The summary `teleopctl simulate --json` prints (docs/cli.md): the run's figures of merit and,
+// for a bilateral scene, what the analyser predicts for its loop. The Python module returns it.
+[[nodiscard]] nlohmann::json simulation_document(const config::LoadedConfig& cfg,
+                                                 const scene::SceneSetup& setup,
+                                                 const scene::SimulationResult& result);
 
 [[nodiscard]] SimulateOptions parse_simulate_args(const std::vector<std::string>& args);
 [[nodiscard]] std::string simulate_usage();

@@ -2,8 +2,10 @@
 # deploy.package_contents: builds the Debian package from BUILD_DIR's binaries (cpack with the
 # build's CPackConfig.cmake: no second compilation; scripts/package.sh makes the Release one)
 # and checks what is in it: the four executables, the three units, the examples, the docs, the
-# sysusers/tmpfiles/udev files, Depends from dpkg-shlibdeps, the maintainer scripts; then
-# extracts it and runs the extracted teleopctl (no LD_LIBRARY_PATH) on the extracted example.
+# sysusers/tmpfiles/udev files, the .proto files and their descriptor set, the Python module
+# (when built), Depends from dpkg-shlibdeps, the maintainer scripts; then extracts it and runs
+# the extracted teleopctl (no LD_LIBRARY_PATH) on the extracted example, and imports the
+# extracted module into /usr/bin/python3.
 #
 #   package_contents.sh BUILD_DIR SOURCE_DIR
 # Exit 0 pass, 1 fail, 77 skipped (no dpkg-deb/dpkg-shlibdeps).
@@ -56,6 +58,17 @@ for f in /usr/bin/teleop-master /usr/bin/teleop-slave /usr/bin/teleop-supervisor
          /usr/share/teleop/examples/live.textproto /usr/share/doc/teleop/README.md; do
   grep -qxF "$f" "$tmp/contents" || fail "$f not in the package"
 done
+# The schemas for any language: every .proto of proto/ and their FileDescriptorSet.
+while IFS= read -r f; do
+  grep -qxF "/usr/share/teleop/proto/$f" "$tmp/contents" || fail "proto/$f not in the package"
+done < <(cd "$src/proto" && find . -type f -name '*.proto' | sed 's|^\./||')
+grep -qxF /usr/share/teleop/proto/teleop.desc "$tmp/contents" || fail "teleop.desc not in the package"
+# The Python module, when this build made it (docs/python.md).
+python_module=$(grep -q '^TELEOP_BUILD_PYTHON:BOOL=ON$' "$build/CMakeCache.txt" && echo yes || true)
+if [ -n "$python_module" ]; then
+  grep -Eqx '/usr/lib/python3/dist-packages/teleop\.cpython-[^/]*\.so' "$tmp/contents" ||
+    fail "the Python module teleop is not in /usr/lib/python3/dist-packages"
+fi
 # Every file of examples/ (scenes too).
 while IFS= read -r f; do
   grep -qxF "/usr/share/teleop/examples/$f" "$tmp/contents" || fail "examples/$f not in the package"
@@ -152,6 +165,13 @@ if [ "$rc" -ne 0 ]; then
   fail "extracted teleopctl analyze live.textproto: exit $rc"
 elif ! head -n 1 "$tmp/analyze.out" | grep -Eq ': (stable|unstable|uncertain)$'; then
   fail "extracted teleopctl analyze printed no verdict"
+fi
+
+# The extracted module imports into Debian's python3 and names the package's version.
+if [ -n "$python_module" ] && [ -x /usr/bin/python3 ]; then
+  got=$(env PYTHONPATH="$tmp/x/usr/lib/python3/dist-packages" /usr/bin/python3 -c \
+    'import teleop; print(teleop.__version__)' 2>&1) || true
+  [ "$got" = "$version" ] || fail "extracted Python module: '$got', expected version '$version'"
 fi
 
 if [ "$failures" -ne 0 ]; then
