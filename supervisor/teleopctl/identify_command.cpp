@@ -551,8 +551,8 @@ void print_text(const Fitted& f, std::ostream& out) {
   const stability::IdentifyResult& r = f.result;
   const IdentifyArgs& a = f.args;
   const std::string what = f.side ? *f.side + " device" : "device";
-  out << fmt::format("{} {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
-                     f.identified() ? "identified" : "NOT IDENTIFIED:", what, r.runs.size(),
+  out << (f.identified() ? "identified " + what + ": " : "NOT IDENTIFIED (" + what + "): ");
+  out << fmt::format("{} run{}, {} samples ({} smoothing passes, trim {})\n", r.runs.size(),
                      r.runs.size() == 1 ? "" : "s", r.samples, a.options.smoothing_passes,
                      a.options.trim_samples);
   if (f.identified()) {
@@ -632,7 +632,14 @@ void write_fit_plot(const std::string& path, const Fitted& f) {
   }
   chart.panels[0].series.push_back(std::move(x));
   chart.panels[1].series = {std::move(measured), std::move(fitted)};
-  for (const std::string& why : f.refused) chart.notes.push_back("not identified: " + why);
+  if (!f.refused.empty()) chart.notes.push_back("not identified:");
+  if (f.excitation.quantised() && f.excitation.steps() < kMinRangeSteps) {
+    chart.notes.push_back(fmt::format("motion over {:.1f} encoder counts (fewer than {:g})",
+                                      f.excitation.steps(), kMinRangeSteps));
+  }
+  if (r.r_squared < kPoorFit) {
+    chart.notes.push_back(fmt::format("r² = {:.3f} (below {:g})", r.r_squared, kPoorFit));
+  }
   write_svg(path, chart);
 }
 

@@ -26,6 +26,7 @@ constexpr double kSquare = 440.0;         // the z-plane
 constexpr double kInsetSide = 170.0;      // the z-plane's inset
 constexpr double kLegendRow = 17.0;       // one legend line
 constexpr std::size_t kLegendChars = 25;  // wrap legend text here (about 6.5 px a character)
+constexpr std::size_t kNoteChars = 31;    // and the smaller notes under it
 // Tolerance when rounding bounds to multiples of the step, relative to the step.
 constexpr double kTickSlack = 1e-9;
 
@@ -76,8 +77,8 @@ struct Bounds {
   }
 };
 
-// Text split into lines of at most kLegendChars at spaces.
-std::vector<std::string> wrap(const std::string& text) {
+// Text split into lines of at most `width` characters at spaces.
+std::vector<std::string> wrap(const std::string& text, std::size_t width) {
   std::vector<std::string> lines;
   std::string line;
   std::size_t i = 0;
@@ -85,7 +86,7 @@ std::vector<std::string> wrap(const std::string& text) {
     std::size_t end = text.find(' ', i);
     if (end == std::string::npos) end = text.size();
     const std::string word = text.substr(i, end - i);
-    if (!line.empty() && line.size() + 1 + word.size() > kLegendChars) {
+    if (!line.empty() && line.size() + 1 + word.size() > width) {
       lines.push_back(line);
       line.clear();
     }
@@ -244,7 +245,7 @@ double draw_legend(std::string& svg, double x, double y, const std::vector<Legen
           x + 8.0, mid, x + 32.0, mid, e.colour, e.dashed ? " stroke-dasharray=\"6 4\"" : "");
     }
     marker(body, e.marker, x + 20.0, e.marker == Marker::kTriangle ? mid + 5.0 : mid, e.colour, "");
-    for (const std::string& line : wrap(e.label)) {
+    for (const std::string& line : wrap(e.label, kLegendChars)) {
       body += fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\" font-size=\"12\">{}</text>\n", x + 40.0,
                           row, escape(line));
       row += kLegendRow - 2.0;
@@ -252,7 +253,7 @@ double draw_legend(std::string& svg, double x, double y, const std::vector<Legen
     row += 2.0;
   }
   for (const std::string& note : notes) {
-    for (const std::string& line : wrap(note)) {
+    for (const std::string& line : wrap(note, kNoteChars)) {
       body +=
           fmt::format("<text x=\"{:.2f}\" y=\"{:.2f}\" font-size=\"11\" fill=\"#555\">{}</text>\n",
                       x + 8.0, row, escape(line));
@@ -419,7 +420,8 @@ std::string render_panels(const Chart& chart) {
   }
   // Up to eight intervals along the 500-pixel axis: 0-7 s in steps of 1 s, not 0-8 in 2.
   const Ticks xt = nice_ticks(xb.lo, xb.hi, 8);
-  std::string svg = header(chart, height);
+  std::string svg;
+  double legend_bottom = 0.0;  // a long legend makes the figure taller, never cut off
   for (std::size_t i = 0; i < chart.panels.size(); ++i) {
     const Panel& p = chart.panels[i];
     Bounds yb;
@@ -442,11 +444,12 @@ std::string render_panels(const Chart& chart) {
     svg += "</g>\n";
     std::vector<LegendEntry> entries;
     for (const Series& s : p.series) entries.push_back(entry_of(s, chart.colour_scale));
-    draw_legend(svg, kColumnX, top, entries,
-                i + 1 == chart.panels.size() ? chart.notes : std::vector<std::string>{});
+    legend_bottom = std::max(
+        legend_bottom,
+        draw_legend(svg, kColumnX, top, entries,
+                    i + 1 == chart.panels.size() ? chart.notes : std::vector<std::string>{}));
   }
-  svg += "</svg>\n";
-  return svg;
+  return header(chart, std::max(height, std::ceil(legend_bottom + 12.0))) + svg + "</svg>\n";
 }
 
 }  // namespace
