@@ -302,6 +302,22 @@ int write_session_plot(const record::SessionReader& session, const ReplayArgs& a
                   slave.size(), static_cast<double>(last - origin) * 1e-9));
   if (!master.empty()) add_node_traces(chart, master, origin, "master", 0);
   if (!slave.empty()) add_node_traces(chart, slave, origin, "slave", 1);
+  // The fixtures of the recorded configuration, where the positions meet them.
+  if (const std::optional<config::LoadedConfig> cfg = record::recorded_config(session)) {
+    if (cfg->config.has_gains()) {
+      const TeleopParams p = config::to_teleop_params(*cfg);
+      const double t_end = static_cast<double>(last - origin) * 1e-9;
+      const std::pair<const char*, const FixtureParams*> fixtures[] = {
+          {"master", &p.master_fixture}, {"slave", &p.slave_fixture}};
+      for (std::size_t i = 0; i < 2; ++i) {
+        const FixtureParams& f = *fixtures[i].second;
+        if (!(f.stiffness_N_per_m > 0.0)) continue;
+        add_level(chart, 0,
+                  fmt::format("{} fixture ({:g} N/m)", fixtures[i].first, f.stiffness_N_per_m),
+                  1e3 * f.position_m, 0.0, t_end, line_colour(i));
+      }
+    }
+  }
   chart.notes.push_back(
       "the slave's load cell reads its push on the environment; lines break where cycles are "
       "missing");

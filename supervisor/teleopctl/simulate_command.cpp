@@ -370,12 +370,8 @@ std::size_t trace_colour(const std::string& column, std::size_t& next) {
 void add_fixture(Chart& chart, const char* side, const FixtureParams& f, double t_end,
                  std::size_t colour) {
   if (!(f.stiffness_N_per_m > 0.0)) return;
-  Series s{fmt::format("{} fixture ({:g} N/m)", side, f.stiffness_N_per_m),
-           {{0.0, 1e3 * f.position_m}, {t_end, 1e3 * f.position_m}},
-           line_colour(colour),
-           true};
-  s.dashed = true;
-  chart.panels[0].series.push_back(std::move(s));
+  add_level(chart, 0, fmt::format("{} fixture ({:g} N/m)", side, f.stiffness_N_per_m),
+            1e3 * f.position_m, 0.0, t_end, line_colour(colour));
 }
 
 // Positions (mm) above forces (N) against time: what the devices and the people did; the

@@ -541,6 +541,13 @@ Chart position_force_chart(std::string title, std::string subtitle) {
   return chart;
 }
 
+void add_level(Chart& chart, std::size_t panel, std::string label, double y, double x0, double x1,
+               std::string colour) {
+  Series s{std::move(label), {{x0, y}, {x1, y}}, std::move(colour), true};
+  s.dashed = true;
+  chart.panels.at(panel).series.push_back(std::move(s));
+}
+
 std::size_t plot_stride(std::size_t samples) {
   return std::max<std::size_t>(1, (samples + kMaxPlotPoints - 1) / kMaxPlotPoints);
 }

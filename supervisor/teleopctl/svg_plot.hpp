@@ -95,6 +95,10 @@ struct Chart {
 // Two panels over one time axis (s): positions (mm) above forces (N), series to be added.
 [[nodiscard]] Chart position_force_chart(std::string title, std::string subtitle);
 
+// A dashed horizontal line at y over [x0, x1] in one panel (a fixture's position, a bound).
+void add_level(Chart& chart, std::size_t panel, std::string label, double y, double x0, double x1,
+               std::string colour);
+
 // Every how many samples a trace of `samples` keeps to stay near kMaxPlotPoints points (a
 // 520-pixel-wide panel shows no more).
 inline constexpr std::size_t kMaxPlotPoints = 2500;

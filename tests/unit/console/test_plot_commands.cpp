@@ -311,7 +311,10 @@ TEST(TimePlots, ReplayPlotsBothNodesFromTheRecording) {
   const Result r = ctl("replay", {session, "--plot", plot});
   ASSERT_EQ(r.exit_code, 0) << r.err;
   const SvgElement svg = test::read_svg(plot);
-  expect_position_force_panels(svg, 2, 2);
+  // both nodes' positions and the recorded configuration's master fixture (2000 N/m at 5 mm);
+  // both load cells
+  expect_position_force_panels(svg, 3, 2);
+  EXPECT_NE(svg.text.find("master fixture (2000 N/m)"), std::string::npos);
   // 1 s of cycles: the time axis ends at 1 s.
   std::vector<double> t;
   ASSERT_TRUE(test::tick_values(svg.with_class("panel")[1]->with_class("x-tick"), t));
