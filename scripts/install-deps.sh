@@ -7,7 +7,7 @@ packages=(
   libspdlog-dev libfmt-dev nlohmann-json3-dev libboost-dev zlib1g-dev
   libgtest-dev libgmock-dev libbenchmark-dev rt-tests libncurses-dev tmux jq
   libsystemd-dev systemd dpkg-dev iproute2 python3 help2man
-  libwebsocketpp-dev libasio-dev
+  libwebsocketpp-dev libasio-dev libxml2-dev
   python3-dev pybind11-dev python3-pybind11 python3-numpy
 )
 missing=()

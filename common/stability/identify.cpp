@@ -120,13 +120,7 @@ void require_finite(std::size_t run, const char* field, const std::vector<double
   return std::all_of(v.begin(), v.end(), [&](double x) { return x == v.front(); });
 }
 
-struct RunRows {
-  std::vector<double> acceleration{};
-  std::vector<double> velocity{};
-  std::vector<double> force{};
-};
-
-[[nodiscard]] RunRows run_rows(std::size_t run, const Series& s, const IdentifyOptions& o) {
+[[nodiscard]] RegressionRows run_rows(std::size_t run, const Series& s, const IdentifyOptions& o) {
   const std::size_t n = s.position_m.size();
   if (s.force_N.size() != n) {
     throw run_error(run, "force_N has " + std::to_string(s.force_N.size()) +
@@ -178,7 +172,8 @@ struct RunRows {
 
   const std::size_t lo = a.lo + o.trim_samples;
   const std::size_t hi = a.hi - o.trim_samples;
-  RunRows rows;
+  RegressionRows rows;
+  rows.first_sample = lo;
   rows.acceleration.assign(a.v.begin() + static_cast<std::ptrdiff_t>(lo),
                            a.v.begin() + static_cast<std::ptrdiff_t>(hi));
   rows.velocity.assign(v.v.begin() + static_cast<std::ptrdiff_t>(lo),
@@ -196,6 +191,10 @@ struct RunRows {
 
 }  // namespace
 
+RegressionRows regression_rows(const Series& run, const IdentifyOptions& options) {
+  return run_rows(0, run, options);
+}
+
 std::size_t usable_rows(std::size_t samples, bool has_held_force, const IdentifyOptions& o) {
   if (o.smoothing_passes < 1 || o.smoothing_passes > kMaxSmoothingPasses) return 0;
   const std::size_t len = has_held_force && samples > 0 ? samples - 1 : samples;
@@ -210,7 +209,7 @@ IdentifyResult identify(const std::vector<Series>& runs, const IdentifyOptions& 
                                 std::to_string(kMaxSmoothingPasses) + "], got " +
                                 std::to_string(o.smoothing_passes));
   }
-  std::vector<RunRows> per_run;
+  std::vector<RegressionRows> per_run;
   per_run.reserve(runs.size());
   std::size_t total = 0;
   for (std::size_t r = 0; r < runs.size(); ++r) {
@@ -222,7 +221,7 @@ IdentifyResult identify(const std::vector<Series>& runs, const IdentifyOptions& 
   Eigen::MatrixXd d(static_cast<Eigen::Index>(total), 2);
   Eigen::VectorXd f(static_cast<Eigen::Index>(total));
   Eigen::Index row = 0;
-  for (const RunRows& rr : per_run) {
+  for (const RegressionRows& rr : per_run) {
     for (std::size_t i = 0; i < rr.force.size(); ++i, ++row) {
       d(row, 0) = rr.acceleration[i];
       d(row, 1) = rr.velocity[i];
@@ -283,7 +282,7 @@ IdentifyResult identify(const std::vector<Series>& runs, const IdentifyOptions& 
   result.samples = total;
   result.condition_number = condition;
   row = 0;
-  for (const RunRows& rr : per_run) {
+  for (const RegressionRows& rr : per_run) {
     const Eigen::Index len = static_cast<Eigen::Index>(rr.force.size());
     RunFit fit;
     fit.samples = rr.force.size();

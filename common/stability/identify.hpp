@@ -93,6 +93,19 @@ struct IdentifyResult {
 [[nodiscard]] IdentifyResult identify(const std::vector<Series>& runs,
                                       const IdentifyOptions& options = {});
 
+// The rows one run contributes to the fit: the smoothed acceleration and velocity (the
+// regressors x'' and x') and the (smoothed) force of samples first_sample, first_sample + 1, ...
+// of the run, for showing the measured force against the fitted m x'' + b x'. Throws as
+// identify() does for this run.
+struct RegressionRows {
+  std::size_t first_sample{0};
+  std::vector<double> acceleration{};
+  std::vector<double> velocity{};
+  std::vector<double> force{};
+};
+[[nodiscard]] RegressionRows regression_rows(const Series& run,
+                                             const IdentifyOptions& options = {});
+
 // Rows a run of `samples` samples contributes: all but 2 smoothing_passes + 4 + trim_samples at
 // each end and, with a held force, the last sample; 0 when fewer than 3 would remain (an error
 // in identify()).

@@ -10,6 +10,7 @@
 #include "common/config/config_loader.hpp"
 #include "common/stability/analyzer.hpp"
 #include "common/stability/force_loop.hpp"
+#include "supervisor/teleopctl/analyze_plots.hpp"
 #include "supervisor/teleopctl/json_output.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
@@ -35,12 +36,6 @@ std::string human_text(const std::optional<stability::HumanSample>& h, HumanKind
                   h->impedance.damping_Ns_per_m, h->impedance.stiffness_N_per_m);
   if (h->has_force) s += fmt::format(" at grip force {:.4g} N", h->force_N);
   return s;
-}
-
-void write_file(const std::string& path, const std::string& text) {
-  std::ofstream f(path);
-  f << text;
-  if (!f) throw std::runtime_error(fmt::format("cannot write '{}'", path));
 }
 
 // The loaded configuration with extra assignments applied, as engine parameters.
@@ -104,8 +99,6 @@ LimitsDocument limits_document(const config::LoadedConfig& cfg, Side side,
   const std::size_t points = sweep_values.size() * rates.size();
   std::size_t done = 0;
   for (const auto& sv : sweep_values) {
-    Series line;
-    line.label = sv ? fmt::format("{} = {:g}", sweep->path, *sv) : std::string(side_name);
     for (const double rate : rates) {
       std::vector<std::string> sets{"sample_rate_hz=" + number_text(rate)};
       if (sv) sets.push_back(sweep->path + "=" + number_text(*sv));
@@ -115,18 +108,8 @@ LimitsDocument limits_document(const config::LoadedConfig& cfg, Side side,
       json j = limit_json(l, side, rate);
       if (sv) j[sweep->path] = *sv;
       limits.push_back(j);
-      const double x = (sweep && rates.size() == 1) ? *sv : rate;
-      line.points.emplace_back(x, l.max_stable_stiffness_N_per_m.value_or(std::nan("")));
       if (progress) progress(++done, points);
     }
-    d.series.push_back(std::move(line));
-  }
-  if (sweep && rates.size() == 1) {
-    // One rate, one swept value: a single curve against the swept parameter.
-    Series merged{fmt::format("{} fixture limit", side_name), {}};
-    for (const Series& s : d.series)
-      merged.points.insert(merged.points.end(), s.points.begin(), s.points.end());
-    d.series = {merged};
   }
   d.document = json{{"side", side_name},
                     {"swept", sweep ? json(sweep->path) : json(nullptr)},
@@ -145,11 +128,10 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
   const TeleopParams base = config::to_teleop_params(cfg);
   // A big sweep takes seconds: its progress on a terminal.
   ProgressLine progress(err, "analyze --max-stiffness", !o.json && stderr_is_terminal());
-  LimitsDocument d =
+  const LimitsDocument d =
       limits_document(cfg, side, o.rates_hz, o.sweep,
                       [&](std::size_t done, std::size_t points) { progress.update(done, points); });
   const json& limits = d.document["limits"];
-  std::vector<Series>& series = d.series;
   const bool any_invalid = d.any_invalid;
 
   if (o.json) {
@@ -179,14 +161,15 @@ int run_limits(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
     }
   }
   if (o.plot_path) {
-    Chart chart;
-    chart.title = fmt::format("Maximum stable {} fixture stiffness", side_name);
-    chart.x_label = (o.sweep && o.rates_hz.size() <= 1) ? o.sweep->path : "sample rate (Hz)";
-    chart.y_label = "stiffness (N/m)";
-    const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
-    for (std::size_t i = 0; i < series.size(); ++i) series[i].colour = colours[i % 6];
-    chart.series = series;
-    write_file(*o.plot_path, render_svg(chart));
+    LimitsPlot plot{side_name, o.sweep ? o.sweep->path : std::string(), o.rates_hz.size() <= 1,
+                    limits};
+    plot.subtitle = fmt::format(
+        "worst case over the human model; required damping ratio {:g}; {} fixture held at "
+        "{:g} N/m",
+        base.analysis.required_damping_ratio, side == Side::kMaster ? "slave" : "master",
+        side == Side::kMaster ? base.slave_fixture.stiffness_N_per_m
+                              : base.master_fixture.stiffness_N_per_m);
+    write_svg(*o.plot_path, limits_chart(plot));
   }
   return any_invalid ? kExitError : kExitStable;
 }
@@ -222,26 +205,7 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
                          m.damping_ratio);
     }
   }
-  if (o.plot_path) {
-    // The eigenvalue cloud over every human (the paper's Fig. 6).
-    const stability::LoopEvaluator ev(p);
-    Series cloud{"eigenvalues over the human band", {}, "#1f77b4", false};
-    for (std::size_t i = 0; i < ev.human_count(); ++i) {
-      const stability::Spectrum s = ev.spectrum(i, p.master_fixture.stiffness_N_per_m,
-                                                p.slave_fixture.stiffness_N_per_m, false);
-      for (const stability::Mode& m : s.modes) {
-        if (!m.structural) cloud.points.emplace_back(m.z.real(), m.z.imag());
-      }
-    }
-    Chart chart;
-    chart.title = fmt::format("z-plane eigenvalues, {:g} Hz, slave fixture {:g} N/m",
-                              p.sample_rate_hz, p.slave_fixture.stiffness_N_per_m);
-    chart.x_label = "Re z";
-    chart.y_label = "Im z";
-    chart.unit_circle = true;
-    chart.series = {cloud};
-    write_file(*o.plot_path, render_svg(chart));
-  }
+  if (o.plot_path) write_svg(*o.plot_path, z_plane_chart(p, r));
   switch (r.verdict) {
     case stability::Verdict::kStable:
       return kExitStable;

@@ -13,7 +13,6 @@
 #include "common/config/config_loader.hpp"
 #include "common/stability/stiffness_search.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
-#include "supervisor/teleopctl/svg_plot.hpp"
 
 namespace teleop::ctl {
 
@@ -56,7 +55,6 @@ inline constexpr int kExitUncertain = 4;
 // document, the curves for --plot, and whether a point's model was not finite (the CLI exits 1).
 struct LimitsDocument {
   nlohmann::json document{};
-  std::vector<Series> series{};
   bool any_invalid{false};
 };
 // `rates_hz` empty: the configured rate. `progress(done, points)` after each point, if set.

@@ -6,6 +6,7 @@
 #include <charconv>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <ostream>
@@ -14,6 +15,7 @@
 
 #include "common/session/session_reader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/node_state.pb.h"
 
 namespace teleop::ctl {
@@ -22,8 +24,17 @@ namespace {
 
 using nlohmann::json;
 
-// A fit below this explains too little of the force to trust (the paper's were 0.91 and 0.92).
+// A fit below this explains too little of the force to trust (the paper's were 0.91 and 0.92):
+// the parameters are not printed.
 constexpr double kPoorFit = 0.9;
+// A motion over fewer steps of the position's resolution (encoder counts) than this is refused:
+// the quantisation, +-1/2 step, is then more than 5 % of the range, and after smoothing the
+// staircase still dominates x'' (noise in a regressor biases its coefficient towards 0).
+constexpr double kMinRangeSteps = 10.0;
+// The data do not determine the parameters (too little excitation): nothing printed to paste.
+constexpr int kExitNotIdentified = 4;
+// The measured-against-fitted plot shows this much of the first run.
+constexpr double kPlotWindow_s = 4.0;
 // A row of `teleopctl simulate --out` is written after the physics step: its time, true
 // positions and the human's and environment's forces are at the step's end, its commands were
 // held over the step, and its *_sensed_m are the samples the laws read at the step's start, one
@@ -121,6 +132,7 @@ struct IdentifyArgs {
   bool custom_columns{false};
   stability::IdentifyOptions options{};
   bool json{false};
+  std::optional<std::string> plot_path{};  // --plot FILE.svg
 };
 
 [[nodiscard]] int parse_count(const std::string& text, const char* flag, int min) {
@@ -169,6 +181,8 @@ struct IdentifyArgs {
       a.options.smooth_force = false;
     } else if (arg == "--json") {
       a.json = true;
+    } else if (arg == "--plot") {
+      a.plot_path = svg_plot_path(c.value("--plot"));
     } else if (!arg.empty() && arg.front() == '-') {
       throw UsageError(fmt::format("unknown option '{}'", arg));
     } else {
@@ -281,11 +295,18 @@ struct McapRuns {
   return out;
 }
 
-[[nodiscard]] std::string config_line(const std::optional<std::string>& side, double mass_kg,
-                                      double damping_Ns_per_m) {
-  const std::string device = fmt::format("device {{ mass_kg: {:.4g} damping_Ns_per_m: {:.4g} }}",
-                                         mass_kg, damping_Ns_per_m);
-  return side ? fmt::format("{} {{ {} }}", *side, device) : device;
+// The fit as `--set` overrides: they replace the file's values wherever the file sets them
+// (a pasted `master { device { ... } }` would be a second master section).
+[[nodiscard]] std::vector<std::string> set_overrides(const std::string& side, double mass_kg,
+                                                     double damping_Ns_per_m) {
+  return {fmt::format("{}.device.mass_kg={:.4g}", side, mass_kg),
+          fmt::format("{}.device.damping_Ns_per_m={:.4g}", side, damping_Ns_per_m)};
+}
+
+[[nodiscard]] std::string set_line(const std::vector<std::string>& overrides) {
+  std::string line;
+  for (const std::string& o : overrides) line += (line.empty() ? "--set " : " --set ") + o;
+  return line;
 }
 
 }  // namespace
@@ -324,12 +345,16 @@ std::string identify_usage() {
   return "usage: teleopctl identify FILE.csv|FILE.mcap... [--device master|slave] [--passes N]\n"
          "                          [--trim N] [--time COL | --rate HZ]\n"
          "                          [--position COL --force EXPR [--held-force EXPR]]\n"
-         "                          [--raw-force] [--json]\n\n"
+         "                          [--raw-force] [--json] [--plot FILE.svg]\n\n"
          "Identifies a device's mass and damping, m x'' + b x' = F, by least squares over one\n"
          "or more recorded runs (stacked), from the position smoothed by a multiple-pass\n"
-         "three-point moving average and differentiated twice, and prints the configuration\n"
-         "line to paste. Drive the device with a force that varies over a band of frequencies\n"
-         "(a random push); a free decay cannot separate m from b.\n\n"
+         "three-point moving average and differentiated twice, and prints them as --set\n"
+         "overrides (PATH=VALUE: for teleopctl analyze|simulate, the nodes and the supervisor;\n"
+         "they replace the file's values). Drive the device with a force that varies over a\n"
+         "band of frequencies (a random push, examples/scenes/identify_excitation.textproto);\n"
+         "a free decay cannot separate m from b. With too little excitation (r^2 below 0.9, or\n"
+         "the position moving over fewer than 10 steps of its resolution) nothing is\n"
+         "identified: it says why and exits 4.\n\n"
          "A session file (teleop-supervisor's recording or 'teleopctl simulate --out FILE.mcap')\n"
          "gives the device's cycles from /master/telemetry or /slave/telemetry: position_m, the\n"
          "load cell's force_N (on the slave the force on the device is -force_N: the cell reads\n"
@@ -353,7 +378,11 @@ std::string identify_usage() {
          "  --trim N         further samples dropped at each end of each run (default 0)\n"
          "  --raw-force      do not smooth the force like the regressors\n"
          "  --json           machine-readable output\n"
-         "  --help           this text\n";
+         "  --plot F.svg     the first run's position (mm) and its measured force against the\n"
+         "                   fitted m x'' + b x' (N), first 4 s\n"
+         "  --help           this text\n"
+         "Exit: 0 identified, 1 unreadable data or a fit no device has (check the force's sign),\n"
+         "2 usage, 4 not identified (too little excitation: nothing to use).\n";
 }
 
 namespace {
@@ -412,21 +441,57 @@ struct Runs {
   return r.mass_kg > 0.0 && r.damping_Ns_per_m >= 0.0;
 }
 
-[[nodiscard]] std::vector<std::string> fit_warnings(const stability::IdentifyResult& r,
-                                                    std::size_t short_runs) {
-  std::vector<std::string> warnings;
-  if (!physical(r)) {
-    warnings.push_back(fmt::format(
-        "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
-        "force's sign and columns",
-        r.mass_kg, r.damping_Ns_per_m));
+// How far the device moved: the largest run's position range, and the position's resolution
+// as the data show it (the smallest step between two distinct positions: an encoder count;
+// about 0 for a continuous sensor).
+struct Excitation {
+  double range_m{0.0};
+  double step_m{0.0};
+  [[nodiscard]] bool quantised() const { return step_m > 0.0; }
+  [[nodiscard]] double steps() const { return quantised() ? range_m / step_m : 0.0; }
+};
+
+[[nodiscard]] Excitation excitation(const Runs& runs) {
+  Excitation e;
+  double smallest = std::numeric_limits<double>::infinity();
+  for (const stability::Series& s : runs.runs) {
+    std::vector<double> x = s.position_m;
+    std::sort(x.begin(), x.end());
+    if (x.empty()) continue;
+    e.range_m = std::max(e.range_m, x.back() - x.front());
+    // Steps below this are rounding of one position computed two ways, not resolution.
+    const double rounding = 1e-9 * std::max(std::abs(x.front()), std::abs(x.back()));
+    for (std::size_t i = 1; i < x.size(); ++i) {
+      const double d = x[i] - x[i - 1];
+      if (d > rounding) smallest = std::min(smallest, d);
+    }
+  }
+  // A resolution finer than a millionth of the motion is a continuous sensor.
+  if (std::isfinite(smallest) && smallest > 1e-6 * e.range_m) e.step_m = smallest;
+  return e;
+}
+
+// Why the data do not determine the parameters (empty: they do).
+[[nodiscard]] std::vector<std::string> refusals(const stability::IdentifyResult& r,
+                                                const Excitation& e) {
+  std::vector<std::string> why;
+  if (e.quantised() && e.steps() < kMinRangeSteps) {
+    why.push_back(fmt::format(
+        "the position moved over {:.3g} mm, {:.1f} steps of its resolution ({:.4g} mm, an "
+        "encoder count): fewer than {:g}, so quantisation dominates the accelerations",
+        e.range_m * 1e3, e.steps(), e.step_m * 1e3, kMinRangeSteps));
   }
   if (r.r_squared < kPoorFit) {
-    warnings.push_back(fmt::format(
-        "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (friction, "
-        "contact, a missing force column, too little excitation?)",
+    why.push_back(fmt::format(
+        "r^2 = {:.3f} is below {}: the mass-damper model explains the force poorly (too little "
+        "excitation, friction, contact, a missing force column?)",
         r.r_squared, kPoorFit));
   }
+  return why;
+}
+
+[[nodiscard]] std::vector<std::string> fit_warnings(std::size_t short_runs) {
+  std::vector<std::string> warnings;
   if (short_runs > 0) {
     warnings.push_back(fmt::format(
         "{} stretch{} of consecutive cycles too short to fit or motionless left out (sequence "
@@ -442,26 +507,38 @@ struct Fitted {
   const Runs& runs;
   const stability::IdentifyResult& result;
   std::optional<std::string> side{};
+  Excitation excitation{};
+  std::string unphysical{};            // why no device has these parameters, or ""
+  std::vector<std::string> refused{};  // why the data do not determine them
   std::vector<std::string> warnings{};
-  std::string line{};  // the configuration line to paste
+  [[nodiscard]] bool identified() const { return unphysical.empty() && refused.empty(); }
 };
 
 void print_json(const Fitted& f, std::ostream& out) {
   const stability::IdentifyResult& r = f.result;
   const IdentifyArgs& a = f.args;
-  json j = {{"device", f.side ? json(*f.side) : json(nullptr)},
-            {"mass_kg", r.mass_kg},
-            {"damping_Ns_per_m", r.damping_Ns_per_m},
-            {"r_squared", r.r_squared},
-            {"residual_rms_N", r.residual_rms_N},
-            {"samples", r.samples},
-            {"condition_number", r.condition_number},
-            {"smoothing_passes", a.options.smoothing_passes},
-            {"trim_samples", a.options.trim_samples},
-            {"smooth_force", a.options.smooth_force},
-            {"runs", json::array()},
-            {"warnings", f.warnings},
-            {"config", physical(r) ? json(f.line) : json(nullptr)}};
+  const bool ok = f.identified();
+  std::vector<std::string> reasons = f.refused;
+  if (!f.unphysical.empty()) reasons.push_back(f.unphysical);
+  json j = {
+      {"device", f.side ? json(*f.side) : json(nullptr)},
+      {"identified", ok},
+      {"reasons", reasons},
+      {"mass_kg", ok ? json(r.mass_kg) : json(nullptr)},
+      {"damping_Ns_per_m", ok ? json(r.damping_Ns_per_m) : json(nullptr)},
+      {"r_squared", r.r_squared},
+      {"residual_rms_N", r.residual_rms_N},
+      {"samples", r.samples},
+      {"condition_number", r.condition_number},
+      {"position_range_m", f.excitation.range_m},
+      {"position_step_m", f.excitation.quantised() ? json(f.excitation.step_m) : json(nullptr)},
+      {"smoothing_passes", a.options.smoothing_passes},
+      {"trim_samples", a.options.trim_samples},
+      {"smooth_force", a.options.smooth_force},
+      {"runs", json::array()},
+      {"warnings", f.warnings},
+      {"set",
+       ok && f.side ? json(set_overrides(*f.side, r.mass_kg, r.damping_Ns_per_m)) : json(nullptr)}};
   for (std::size_t i = 0; i < r.runs.size(); ++i) {
     j["runs"].push_back({{"file", f.runs.names[i]},
                          {"samples", r.runs[i].samples},
@@ -473,15 +550,22 @@ void print_json(const Fitted& f, std::ostream& out) {
 void print_text(const Fitted& f, std::ostream& out) {
   const stability::IdentifyResult& r = f.result;
   const IdentifyArgs& a = f.args;
-  out << fmt::format("identified {}: {} run{}, {} samples ({} smoothing passes, trim {})\n",
-                     f.side ? *f.side + " device" : "device", r.runs.size(),
+  const std::string what = f.side ? *f.side + " device" : "device";
+  out << (f.identified() ? "identified " + what + ": " : "NOT IDENTIFIED (" + what + "): ");
+  out << fmt::format("{} run{}, {} samples ({} smoothing passes, trim {})\n", r.runs.size(),
                      r.runs.size() == 1 ? "" : "s", r.samples, a.options.smoothing_passes,
                      a.options.trim_samples);
-  out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
-  out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
+  if (f.identified()) {
+    out << fmt::format("  mass              {:.4g} kg\n", r.mass_kg);
+    out << fmt::format("  damping           {:.4g} Ns/m\n", r.damping_Ns_per_m);
+  }
   out << fmt::format("  r^2               {:.4f} (residual rms {:.3g} N)\n", r.r_squared,
                      r.residual_rms_N);
   out << fmt::format("  condition number  {:.3g}\n", r.condition_number);
+  out << fmt::format("  position range    {:.4g} mm", f.excitation.range_m * 1e3);
+  out << (f.excitation.quantised() ? fmt::format(" ({:.1f} steps of {:.4g} mm)\n",
+                                                 f.excitation.steps(), f.excitation.step_m * 1e3)
+                                   : std::string("\n"));
   if (r.runs.size() > 1) {
     for (std::size_t i = 0; i < r.runs.size(); ++i) {
       out << fmt::format("  run {}: {}: {} samples, r^2 {:.4f}\n", i + 1, f.runs.names[i],
@@ -489,11 +573,74 @@ void print_text(const Fitted& f, std::ostream& out) {
     }
   }
   for (const std::string& w : f.warnings) out << "  warning: " << w << "\n";
-  if (physical(r)) {
-    out << (f.side ? "configuration to paste:\n"
-                   : "configuration to paste (inside master { } or slave { }):\n")
-        << "  " << f.line << "\n";
+  if (!f.identified()) {
+    for (const std::string& why : f.refused) out << "  not identified: " << why << "\n";
+    if (!f.unphysical.empty()) out << "  not identified: " << f.unphysical << "\n";
+    out << "  no parameters to use: drive the device with a force varying over 0.5-10 Hz that\n"
+           "  moves it several millimetres (examples/scenes/identify_excitation.textproto)\n";
+    return;
   }
+  if (f.side) {
+    out << "configuration (--set overrides; they replace the file's values):\n  "
+        << set_line(set_overrides(*f.side, r.mass_kg, r.damping_Ns_per_m)) << "\n";
+  } else {
+    out << "configuration (--set overrides; they replace the file's values), for the master:\n  "
+        << set_line(set_overrides("master", r.mass_kg, r.damping_Ns_per_m))
+        << "\nor for the slave:\n  "
+        << set_line(set_overrides("slave", r.mass_kg, r.damping_Ns_per_m)) << "\n";
+  }
+}
+
+// The first run, at most kPlotWindow_s of it: its position, and its force (as fitted: smoothed
+// like the regressors unless --raw-force) against m x'' + b x'.
+void write_fit_plot(const std::string& path, const Fitted& f) {
+  const stability::Series& run = f.runs.runs.front();
+  const stability::RegressionRows rows = stability::regression_rows(run, f.args.options);
+  const double period_s = run.time_s.empty() ? run.period_s
+                                             : (run.time_s.back() - run.time_s.front()) /
+                                                   static_cast<double>(run.time_s.size() - 1);
+  const double t0 = run.time_s.empty() ? 0.0 : run.time_s.front();
+  // Rows up to kPlotWindow_s after the run's first sample (a round end for the time axis).
+  const auto window_end = static_cast<std::size_t>(std::floor(kPlotWindow_s / period_s + 1e-9));
+  const std::size_t n = std::min(
+      rows.force.size(), window_end > rows.first_sample ? window_end - rows.first_sample + 1 : 1);
+  const stability::IdentifyResult& r = f.result;
+  Chart chart = position_force_chart(
+      f.identified()
+          ? fmt::format("Identified {}: m = {:.4g} kg, b = {:.4g} Ns/m, r² = {:.3f}",
+                        f.side.value_or("device"), r.mass_kg, r.damping_Ns_per_m, r.r_squared)
+          : fmt::format("{}: NOT IDENTIFIED (r² = {:.3f})", f.side.value_or("device"), r.r_squared),
+      fmt::format("{}: {:.3g} s of {:.3g} s shown", f.runs.names.front(),
+                  static_cast<double>(n) * period_s,
+                  static_cast<double>(rows.force.size()) * period_s));
+  Series x{"measured position", {}, line_colour(0), true};
+  Series measured{
+      f.args.options.smooth_force ? "measured force (smoothed as the fit)" : "measured force",
+      {},
+      "#000000",
+      true};
+  Series fitted{"fitted m x'' + b x'", {}, line_colour(1), true};
+  fitted.dashed = true;
+  const std::size_t stride = plot_stride(n);
+  for (std::size_t i = 0; i < n; i += stride) {
+    const std::size_t k = rows.first_sample + i;
+    const double t = t0 + static_cast<double>(k) * period_s;
+    x.points.emplace_back(t, 1e3 * run.position_m[k]);
+    measured.points.emplace_back(t, rows.force[i]);
+    fitted.points.emplace_back(
+        t, r.mass_kg * rows.acceleration[i] + r.damping_Ns_per_m * rows.velocity[i]);
+  }
+  chart.panels[0].series.push_back(std::move(x));
+  chart.panels[1].series = {std::move(measured), std::move(fitted)};
+  if (!f.refused.empty()) chart.notes.push_back("not identified:");
+  if (f.excitation.quantised() && f.excitation.steps() < kMinRangeSteps) {
+    chart.notes.push_back(fmt::format("motion over {:.1f} encoder counts (fewer than {:g})",
+                                      f.excitation.steps(), kMinRangeSteps));
+  }
+  if (r.r_squared < kPoorFit) {
+    chart.notes.push_back(fmt::format("r² = {:.3f} (below {:g})", r.r_squared, kPoorFit));
+  }
+  write_svg(path, chart);
 }
 
 int identify(const IdentifyArgs& a, std::ostream& out, std::ostream& err) {
@@ -501,15 +648,30 @@ int identify(const IdentifyArgs& a, std::ostream& out, std::ostream& err) {
   const stability::IdentifyResult r = fit(runs, a.options);
   Fitted f{a, runs, r};
   f.side = a.custom_columns ? a.device : std::optional<std::string>(a.device.value_or("master"));
-  f.warnings = fit_warnings(r, runs.short_runs);
-  f.line = config_line(f.side, r.mass_kg, r.damping_Ns_per_m);
+  f.excitation = excitation(runs);
+  if (!physical(r)) {
+    f.unphysical = fmt::format(
+        "the fit gives mass {:.4g} kg and damping {:.4g} Ns/m, which no device has: check the "
+        "force's sign and columns",
+        r.mass_kg, r.damping_Ns_per_m);
+  }
+  f.refused = refusals(r, f.excitation);
+  f.warnings = fit_warnings(runs.short_runs);
   if (a.json) {
     print_json(f, out);
   } else {
     print_text(f, out);
   }
-  if (!physical(r)) {
-    err << "teleopctl identify: " << f.warnings.front() << "\n";
+  if (a.plot_path) write_fit_plot(*a.plot_path, f);
+  // A poor fit first: its parameters mean nothing, signs included. A good fit no device has
+  // is a sign or column mistake.
+  if (!f.refused.empty()) {
+    err << "teleopctl identify: not identified, too little excitation: " << f.refused.front()
+        << "\n";
+    return kExitNotIdentified;
+  }
+  if (!f.unphysical.empty()) {
+    err << "teleopctl identify: " << f.unphysical << "\n";
     return kExitError;
   }
   return kExitOk;

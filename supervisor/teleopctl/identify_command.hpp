@@ -1,7 +1,9 @@
 // `teleopctl identify FILE.csv...`: a device's mass and damping by least squares from recorded
 // runs (Abbott-Okamura §4.1, eqs. 32-35; common/stability/identify.hpp), printed with the
-// configuration lines to paste. Reads the CSV time series `teleopctl simulate --out` writes, or
-// any CSV with a header row through --time/--position/--force.
+// `--set` overrides that put them into a configuration, or refused when the data do not
+// determine them; `--plot FILE.svg` shows the measured force against the fitted one. Reads the CSV
+// time series `teleopctl simulate --out` writes, or any CSV with a header row through
+// --time/--position/--force.
 #pragma once
 
 #include <cstddef>
@@ -17,7 +19,9 @@ namespace teleop::ctl {
 
 // Handles the whole command, usage errors included. Exit codes: 0 identified, 1 unreadable or
 // unusable data (the message names the file, line, column or problem) or a fit with a
-// non-positive mass or negative damping, 2 usage (`--help` prints the usage on `out`, exit 0).
+// non-positive mass or negative damping, 2 usage (`--help` prints the usage on `out`, exit 0),
+// 4 not identified: too little excitation (r^2 below 0.9, or the position moving over fewer
+// than 10 steps of its resolution), no parameters printed.
 int run_identify(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 // One CSV file as a run: the position column, the sampled force and held force as sums of

@@ -28,6 +28,7 @@
 #include "supervisor/teleopctl/replay_live.hpp"
 #include "supervisor/teleopctl/replay_summary.hpp"
 #include "supervisor/teleopctl/replay_supervision.hpp"
+#include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/telemetry.pb.h"
 
 namespace teleop::ctl {
@@ -40,7 +41,7 @@ namespace topic = record::topic;
 
 // --- arguments -----------------------------------------------------------------------------
 
-enum class Action { kSummary, kPrint, kCsv, kRecover, kLive, kResimulate };
+enum class Action { kSummary, kPrint, kCsv, kRecover, kLive, kResimulate, kPlot };
 
 struct ReplayArgs {
   std::string file{};
@@ -49,6 +50,7 @@ struct ReplayArgs {
   std::string channel{};                  // --print
   std::optional<std::string> out_path{};  // --csv --out
   std::string recover_path{};             // --recover
+  std::string plot_path{};                // --plot
   double speed{1.0};                      // --speed
   std::string control{defaults::kReplayControlEndpoint};
   std::optional<std::string> master_endpoint{};
@@ -63,7 +65,7 @@ void set_action(ReplayArgs& a, Action action, bool& chosen, const std::string& f
   if (chosen && a.action != action) {
     throw UsageError(
         fmt::format("{} cannot be combined with another of --print, --csv, "
-                    "--recover, --speed, --resimulate",
+                    "--recover, --speed, --resimulate, --plot",
                     flag));
   }
   chosen = true;
@@ -96,6 +98,9 @@ void set_action(ReplayArgs& a, Action action, bool& chosen, const std::string& f
       if (!(a.speed > 0.0)) throw UsageError(fmt::format("--speed: '{}' is not positive", v));
     } else if (arg == "--resimulate") {
       set_action(a, Action::kResimulate, chosen, arg);
+    } else if (arg == "--plot") {
+      set_action(a, Action::kPlot, chosen, arg);
+      a.plot_path = svg_plot_path(c.value("--plot"));
     } else if (arg == "--set") {
       a.overrides.push_back(c.value("--set"));
     } else if (arg == "--control") {
@@ -134,7 +139,8 @@ void set_action(ReplayArgs& a, Action action, bool& chosen, const std::string& f
   if (!a.overrides.empty() && a.action != Action::kLive && a.action != Action::kResimulate) {
     throw UsageError("--set goes with --speed or --resimulate");
   }
-  if (a.json && (a.action == Action::kCsv || a.action == Action::kLive)) {
+  if (a.json &&
+      (a.action == Action::kCsv || a.action == Action::kLive || a.action == Action::kPlot)) {
     throw UsageError("--json goes with the summary, --print, --recover or --resimulate");
   }
   return a;
@@ -247,6 +253,76 @@ int write_cycles_csv(const record::SessionReader& session, const ReplayArgs& a, 
     throw std::runtime_error(
         fmt::format("cannot write '{}'", a.out_path ? *a.out_path : std::string("stdout")));
   }
+  return kExitOk;
+}
+
+// --- --plot --------------------------------------------------------------------------------
+
+// One node's positions (mm) and load-cell forces (N) from `origin_ns`, a line broken wherever
+// cycles are missing (a sequence gap or a restart), about kMaxPlotPoints points.
+void add_node_traces(Chart& chart, const std::vector<record::RecordedCycle>& cycles,
+                     std::int64_t origin_ns, const char* node, std::size_t colour) {
+  Series position{fmt::format("{} position", node), {}, line_colour(colour), true};
+  Series force{fmt::format("{} force (load cell)", node), {}, line_colour(colour), true};
+  const std::size_t stride = plot_stride(cycles.size());
+  const double nan = std::nan("");
+  for (std::size_t i = 0; i < cycles.size(); ++i) {
+    const node::CycleRecord& c = cycles[i].cycle;
+    const bool gap = i > 0 && (cycles[i].session_id != cycles[i - 1].session_id ||
+                               c.sequence != cycles[i - 1].cycle.sequence + 1);
+    const double t = static_cast<double>(c.sample_time_ns - origin_ns) * 1e-9;
+    if (gap) {
+      position.points.emplace_back(t, nan);
+      force.points.emplace_back(t, nan);
+    }
+    if (gap || i % stride == 0 || i + 1 == cycles.size()) {
+      position.points.emplace_back(t, 1e3 * c.position_m);
+      force.points.emplace_back(t, c.force_N);
+    }
+  }
+  chart.panels[0].series.push_back(std::move(position));
+  chart.panels[1].series.push_back(std::move(force));
+}
+
+int write_session_plot(const record::SessionReader& session, const ReplayArgs& a,
+                       std::ostream& out) {
+  const std::vector<record::RecordedCycle> master = session.cycles(true);
+  const std::vector<record::RecordedCycle> slave = session.cycles(false);
+  if (master.empty() && slave.empty()) {
+    throw std::runtime_error(fmt::format("{}: no cycles of either node to plot (channels: {})",
+                                         a.file, session.channel_list()));
+  }
+  // Time from the master's first cycle (the slave's when there is no master), as --csv.
+  const std::int64_t origin = (master.empty() ? slave : master).front().cycle.sample_time_ns;
+  const std::int64_t last = std::max(master.empty() ? origin : master.back().cycle.sample_time_ns,
+                                     slave.empty() ? origin : slave.back().cycle.sample_time_ns);
+  Chart chart = position_force_chart(
+      "Recorded session: positions and forces of both nodes",
+      fmt::format("{}: {} master and {} slave cycles over {:.3f} s", a.file, master.size(),
+                  slave.size(), static_cast<double>(last - origin) * 1e-9));
+  if (!master.empty()) add_node_traces(chart, master, origin, "master", 0);
+  if (!slave.empty()) add_node_traces(chart, slave, origin, "slave", 1);
+  // The fixtures of the recorded configuration, where the positions meet them.
+  if (const std::optional<config::LoadedConfig> cfg = record::recorded_config(session)) {
+    if (cfg->config.has_gains()) {
+      const TeleopParams p = config::to_teleop_params(*cfg);
+      const double t_end = static_cast<double>(last - origin) * 1e-9;
+      const std::pair<const char*, const FixtureParams*> fixtures[] = {
+          {"master", &p.master_fixture}, {"slave", &p.slave_fixture}};
+      for (std::size_t i = 0; i < 2; ++i) {
+        const FixtureParams& f = *fixtures[i].second;
+        if (!(f.stiffness_N_per_m > 0.0)) continue;
+        add_level(chart, 0,
+                  fmt::format("{} fixture ({:g} N/m)", fixtures[i].first, f.stiffness_N_per_m),
+                  1e3 * f.position_m, 0.0, t_end, line_colour(i));
+      }
+    }
+  }
+  chart.notes.push_back(
+      "the slave's load cell reads its push on the environment; lines break where cycles are "
+      "missing");
+  write_svg(a.plot_path, chart);
+  out << "wrote " << a.plot_path << "\n";
   return kExitOk;
 }
 
@@ -477,6 +553,8 @@ int run(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
       return replay_live(session, live_options(a), out, err);
     case Action::kResimulate:
       return resimulate(session, a, out);
+    case Action::kPlot:
+      return write_session_plot(session, a, out);
     case Action::kRecover:
       break;
   }
@@ -493,7 +571,8 @@ std::string replay_usage() {
          "       teleopctl replay FILE.mcap --speed X [--control ENDPOINT] [--paused] [--hold]\n"
          "                        [--master-telemetry EP] [--slave-telemetry EP] [--report EP]\n"
          "                        [--set PATH=VALUE]...\n"
-         "       teleopctl replay FILE.mcap --resimulate [--set PATH=VALUE]... [--json]\n\n"
+         "       teleopctl replay FILE.mcap --resimulate [--set PATH=VALUE]... [--json]\n"
+         "       teleopctl replay FILE.mcap --plot FILE.svg\n\n"
          "A recorded session (teleop-supervisor's, or 'teleopctl simulate --out FILE.mcap').\n"
          "  (default)      summary: duration, channels with message counts and schemas, recorder\n"
          "                 drops when known, node cycles and cycles missing (sequence gaps), "
@@ -527,6 +606,8 @@ std::string replay_usage() {
          "                 simulated slave, with the recorded /config plus --set overrides: the\n"
          "                 analyser's verdict and limits, slave tracking error, fixture\n"
          "                 penetration and oscillation, next to what the recording shows\n"
+         "  --plot F.svg   both nodes' positions (mm) and load-cell forces (N) against time, two\n"
+         "                 panels (render a PNG with 'rsvg-convert -o F.png F.svg')\n"
          "Exit: 0 ok, 1 bad file (not MCAP, damaged: try --recover) or unknown channel, 2 usage;\n"
          "--resimulate: 3 the resimulated slave oscillates or the analyser calls the resimulated\n"
          "loop unstable, 4 the analysis is uncertain, 5 its law latched a fault, 1 the\n"

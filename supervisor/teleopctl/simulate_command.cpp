@@ -4,6 +4,7 @@
 
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -349,37 +350,61 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
   file.close();
 }
 
-void write_plot(const std::string& path, const scene::SimulationResult& r) {
+// "human_force_N" -> "human force", "slave_position_m" -> "slave".
+std::string trace_name(const std::string& column) {
+  std::string name = column.substr(0, column.rfind('_'));
+  if (name.ends_with("_position")) name.resize(name.size() - 9);
+  for (char& c : name) c = c == '_' ? ' ' : c;
+  return name;
+}
+
+// A trace's colour follows its node: the master and the hand on it in one colour, the slave
+// and its environment in another, a force device's signals after them.
+std::size_t trace_colour(const std::string& column, std::size_t& next) {
+  if (column.starts_with("master") || column.starts_with("human")) return 0;
+  if (column.starts_with("slave") || column.starts_with("environment")) return 1;
+  return next++;
+}
+
+// A fixture as a dashed line at its position in the position panel.
+void add_fixture(Chart& chart, const char* side, const FixtureParams& f, double t_end,
+                 std::size_t colour) {
+  if (!(f.stiffness_N_per_m > 0.0)) return;
+  add_level(chart, 0, fmt::format("{} fixture ({:g} N/m)", side, f.stiffness_N_per_m),
+            1e3 * f.position_m, 0.0, t_end, line_colour(colour));
+}
+
+// Positions (mm) above forces (N) against time: what the devices and the people did; the
+// laws' internal signals (sensed positions, actuator forces, averages) stay in --out.
+void write_plot(const std::string& path, const std::string& scene_name,
+                const scene::SceneSetup& setup, const scene::SimulationResult& r) {
+  const SimRows sim(r);
   const std::size_t n = r.columns.size();
-  Chart chart;
-  chart.title = r.summary.kind == "bilateral" ? "Positions (mm) and forces (N)"
-                                              : "Positions (mm) and forces (N), force device";
-  chart.x_label = "time (s)";
-  chart.y_label = "mm / N";
-  const char* colours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e"};
-  // Positions in millimetres, forces in newtons, on one axis.
-  std::vector<std::size_t> picks;
+  const bool bilateral = r.summary.kind == "bilateral";
+  Chart chart = position_force_chart(
+      bilateral ? "Bilateral paddles, simulated: positions and forces"
+                : "Force-controlled device, simulated: positions and forces",
+      fmt::format("teleopctl simulate {}, {:g} s",
+                  std::filesystem::path(scene_name).filename().string(), r.summary.duration_s));
+  const std::size_t stride = plot_stride(sim.rows());
+  std::size_t next = bilateral ? 2 : 0;
   for (std::size_t i = 1; i < n; ++i) {
     const std::string& c = r.columns[i];
-    const bool sensed = c.find("sensed") != std::string::npos;
-    const bool internal = c.find("average") != std::string::npos || c == "master_force_N" ||
-                          c == "slave_force_N" || c == "actuator_force_N";
-    if (!sensed && !internal) picks.push_back(i);
-  }
-  const std::size_t stride = std::max<std::size_t>(1, r.rows.size() / n / 2000);
-  for (std::size_t p = 0; p < picks.size(); ++p) {
-    const std::size_t col = picks[p];
-    const bool position = r.columns[col].ends_with("_m");
-    Series s{position ? r.columns[col] + " (mm)" : r.columns[col], {}, colours[p % 5], true};
-    for (std::size_t row = 0; row * n < r.rows.size(); row += stride) {
-      const double v = r.rows[row * n + col];
-      s.points.emplace_back(r.rows[row * n], position ? 1e3 * v : v);
+    const bool position = c.ends_with("_position_m");
+    const bool force = c.ends_with("_force_N") && c.find("average") == std::string::npos &&
+                       c != "master_force_N" && c != "slave_force_N" && c != "actuator_force_N";
+    if (!position && !force) continue;
+    Series s{trace_name(c), {}, line_colour(trace_colour(c, next)), true};
+    for (std::size_t row = 0; row < sim.rows(); row += stride) {
+      s.points.emplace_back(sim.at(row, 0), position ? 1e3 * sim.at(row, i) : sim.at(row, i));
     }
-    chart.series.push_back(std::move(s));
+    chart.panels[position ? 0 : 1].series.push_back(std::move(s));
   }
-  std::ofstream f(path);
-  f << render_svg(chart);
-  if (!f) throw std::runtime_error(fmt::format("cannot write '{}'", path));
+  if (bilateral) {
+    add_fixture(chart, "master", setup.teleop.master_fixture, r.summary.duration_s, 0);
+    add_fixture(chart, "slave", setup.teleop.slave_fixture, r.summary.duration_s, 1);
+  }
+  write_svg(path, chart);
 }
 
 }  // namespace
@@ -535,7 +560,7 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     } else if (o.out_path) {
       write_csv(*o.out_path, r);
     }
-    if (o.plot_path) write_plot(*o.plot_path, r);
+    if (o.plot_path) write_plot(*o.plot_path, cfg.source_name, setup, r);
     if (s.fault) return 5;
     return s.oscillation.detected || s.master_oscillation.detected ? 3 : 0;
   });

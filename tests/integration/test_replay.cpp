@@ -995,9 +995,9 @@ TEST(IdentifySession, BothPaddlesFromASimulatedSessionFile) {
     EXPECT_LT(std::abs(b / c.damping_Ns_per_m - 1.0), 0.05) << c.device << " damping " << b;
     EXPECT_GT(j["r_squared"].get<double>(), 0.9) << c.device;
     ASSERT_EQ(j["runs"].size(), 1U);
-    EXPECT_EQ(
-        j["config"].get<std::string>().rfind(std::string(c.device) + " { device { mass_kg: ", 0),
-        0U);
+    ASSERT_EQ(j["set"].size(), 2U);
+    EXPECT_EQ(j["set"][0].get<std::string>().rfind(std::string(c.device) + ".device.mass_kg=", 0),
+              0U);
     std::cout << c.device << ": m " << m << " kg, b " << b << " Ns/m, r^2 "
               << j["r_squared"].get<double>() << "\n";
   }

@@ -528,16 +528,20 @@ TEST(TeleopctlIdentify, BothPaddlesFromSimulatedSessions) {
     // Each run: 15000 rows, less the sensed position's one-row lag, the held force's last
     // sample and the edges.
     EXPECT_EQ(j["samples"].get<std::size_t>(), 2U * (15000U - 1U - 1U - 2U * kEdge));
-    const std::string config = j["config"].get<std::string>();
-    EXPECT_EQ(config.rfind(std::string(c.device) + " { device { mass_kg: ", 0), 0U) << config;
+    // The overrides that put the fit into a configuration (they replace the file's values).
+    const std::vector<std::string> sets = j["set"].get<std::vector<std::string>>();
+    ASSERT_EQ(sets.size(), 2U);
+    EXPECT_EQ(sets[0].rfind(std::string(c.device) + ".device.mass_kg=", 0), 0U) << sets[0];
+    EXPECT_EQ(sets[1].rfind(std::string(c.device) + ".device.damping_Ns_per_m=", 0), 0U) << sets[1];
     std::cout << c.device << " via teleopctl: m " << m << " (" << 100 * rel_err(m, c.m) << " %), b "
               << d << " (" << 100 * rel_err(d, c.b) << " %), r^2 " << j["r_squared"].get<double>()
               << "\n";
 
-    // The human-readable form prints the same line to paste.
+    // The human-readable form prints the same overrides on one line.
     std::ostringstream text;
     ASSERT_EQ(ctl::run_identify({a, b, "--device", c.device}, text, err), 0);
-    EXPECT_NE(text.str().find("configuration to paste:\n  " + config + "\n"), std::string::npos)
+    EXPECT_NE(text.str().find("\n  --set " + sets[0] + " --set " + sets[1] + "\n"),
+              std::string::npos)
         << text.str();
   }
 }
