@@ -313,14 +313,8 @@ class HostileWire : public ::testing::Test {
         << "a process ended before this test";
     // Each test from both engaged, whatever the one before it left.
     if (s.mt.mode() != v1::ENGAGED || s.st.mode() != v1::ENGAGED) {
-      for (const auto kind :
-           {v1::NodeCommand::CLEAR, v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
-        for (const int port : {s.ports.nodes.master_command, s.ports.nodes.slave_command}) {
-          (void)send_command(s.ctx, tcp(port), kind);
-        }
-      }
-      ASSERT_TRUE(s.mt.wait_for_mode(v1::ENGAGED, 5s)) << s.logs();
-      ASSERT_TRUE(s.st.wait_for_mode(v1::ENGAGED, 5s)) << s.logs();
+      re_engage();
+      if (HasFatalFailure()) return;
     }
     from_master_ = s.mt.cycles().size();
     from_slave_ = s.st.cycles().size();
