@@ -3,14 +3,18 @@
 #   scripts/test.sh            normal build in build/
 #   scripts/test.sh --sanitize ASan+UBSan build with clang in build-asan/
 # TELEOP_BUILD_TYPE=Release|Debug|RelWithDebInfo (default) picks the normal build's type.
+#
+# scripts/run-ctest.sh runs the tests, and again, at most twice, only those that failed with the
+# host's stalls in the nodes' own telemetry (docs/testing.md "Host stalls").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
+
 if [ "${1:-}" = "--sanitize" ]; then
   CC=clang CXX=clang++ ./scripts/build.sh build-asan -DTELEOP_SANITIZE=ON -DTELEOP_BUILD_BENCH=OFF
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
-  ctest --test-dir build-asan --output-on-failure --parallel "$(nproc)"
+  ./scripts/run-ctest.sh build-asan
 else
   ./scripts/build.sh build -DCMAKE_BUILD_TYPE="${TELEOP_BUILD_TYPE:-RelWithDebInfo}"
-  ctest --test-dir build --output-on-failure --parallel "$(nproc)"
+  ./scripts/run-ctest.sh build
 fi

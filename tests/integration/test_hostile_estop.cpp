@@ -189,7 +189,10 @@ EstopRun estop_once(LiveSystem& sys, Process* frozen, const std::vector<std::str
   EstopRun run;
   sys.engage();
   if (::testing::Test::HasFatalFailure()) return run;
-  if (frozen != nullptr) frozen->signal(SIGSTOP);
+  if (frozen != nullptr) {
+    HostTiming::instance().injecting(true);  // the node's stall is this test's
+    frozen->signal(SIGSTOP);
+  }
   std::vector<std::string> args = sys.estop_args();
   args.insert(args.end(), extra.begin(), extra.end());
   static int n = 0;
