@@ -48,10 +48,14 @@ fi
 if want faults; then
 part "faults on the live system (loopback)"
 faults='^(Relay\.|Nodes\.(SlaveKilled|RestartedSlave|EStop|DeviceFault|NaNPosition|HundredThousand)|SupervisorLive\.(KillNine|Restarted|DiskFull|BuzzingWall)|NodesCurve\.Unlisted|Console\.EstopGoesStraight|TwoHosts\.)'
-if (cd build && ctest -R "$faults" --verbose 2>&1 | tee /tmp/teleop-campaign-faults.txt |
-    grep -E "Test +#|tests passed|round trip p50|overruns during|slave fault -> master safe|connections accepted|the guard lowered|across the veth|two machines engaged|recorder: |blackout: |slave killed: "); then
-  note "faults: $(grep -E 'tests passed' /tmp/teleop-campaign-faults.txt)"
-  grep -q "100% tests passed" /tmp/teleop-campaign-faults.txt || failed=1
+# scripts/run-ctest.sh: a test failed with the host's stalls in the nodes' telemetry is run again
+# (docs/testing.md "Host stalls"); its exit status is the judgment.
+rc=0
+./scripts/run-ctest.sh build -R "$faults" --verbose > /tmp/teleop-campaign-faults.txt 2>&1 || rc=$?
+grep -E "Test +#|tests passed|run-ctest|round trip p50|overruns during|slave fault -> master safe|connections accepted|the guard lowered|across the veth|two machines engaged|recorder: |blackout: |slave killed: " \
+  /tmp/teleop-campaign-faults.txt || true
+if [ "$rc" = 0 ]; then
+  note "faults: $(grep -E 'tests passed' /tmp/teleop-campaign-faults.txt | tail -n 1)"
 else
   note "faults: FAILED"
   failed=1
@@ -63,12 +67,14 @@ part "hostile and mistaken input against the real processes (Hostile* tests)"
 # The figures the tests print: e-stop latency from the nodes' telemetry, the unapproved change
 # caught, stalls, clutch and re-engagement, the master's memory under the floods.
 figures='unapproved change in force|stopped [0-9]+ ms|clutch: |re-engaged |teleopctl estop -> both SAFE|: from the send |console x, |master VmRSS'
-if (cd build && ctest -R '^(Hostile|Stalls/HostileCore)' --verbose 2>&1 | tee /tmp/teleop-campaign-hostile.txt |
-    grep -E "Test +#|tests passed|$figures"); then
-  note "hostile: $(grep -E 'tests passed' /tmp/teleop-campaign-hostile.txt)"
+rc=0
+./scripts/run-ctest.sh build -R '^(Hostile|Stalls/HostileCore)' --verbose \
+  > /tmp/teleop-campaign-hostile.txt 2>&1 || rc=$?
+grep -E "Test +#|tests passed|run-ctest|$figures" /tmp/teleop-campaign-hostile.txt || true
+if [ "$rc" = 0 ]; then
+  note "hostile: $(grep -E 'tests passed' /tmp/teleop-campaign-hostile.txt | tail -n 1)"
   while IFS= read -r line; do note "  $line"; done \
     < <(grep -E "$figures" /tmp/teleop-campaign-hostile.txt | grep -v "Test +#" | sort -u | head -n 20)
-  grep -q "100% tests passed" /tmp/teleop-campaign-hostile.txt || failed=1
 else
   note "hostile: FAILED"
   failed=1
