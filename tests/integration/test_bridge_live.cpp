@@ -525,6 +525,23 @@ TEST(BridgeLive, TheConfigurationInForceIsLatchedAndAGuardedChangeArrivesWithIts
   EXPECT_EQ(unchanged_now, unchanged_then);
   EXPECT_GE(s["topics"]["/config"]["last_receive_ns"].get<double>(),
             s["topics"]["/supervisor/parameter_changes"]["first_receive_ns"].get<double>());
+
+  // A bridge started after the change serves the configuration in force, not the file: the
+  // supervisor sends it again every second.
+  const int late_port = free_port();
+  Process late(TELEOPCTL_PATH,
+               {"bridge", sys.config_file().string(), "--port", std::to_string(late_port)},
+               sys.dir() / "late-bridge.log");
+  ASSERT_TRUE(eventually([&] { return late.log().find("on ws://") != std::string::npos; }))
+      << late.log();
+  Process third("/usr/bin/env",
+                {"WS_CHECK_BOUND_S=40", NODE_BIN, std::string(WS_JS_DIR) + "/check.mjs",
+                 "ws://127.0.0.1:" + std::to_string(late_port), "1", "/config:1"},
+                sys.dir() / "third.log");
+  ASSERT_EQ(third.wait(), 0) << third.log() << late.log();
+  const Json t = summary_in(third.log());
+  ASSERT_TRUE(t.is_object()) << third.log();
+  EXPECT_EQ(t["topics"]["/config"]["last"], now) << t["topics"]["/config"].dump(1);
 }
 
 // Secure by default (the launch's ephemeral CURVE keys): a bridge given no key finds the live
