@@ -25,6 +25,7 @@ void SupervisorCore::tick(std::int64_t now_ns) {
   v1::SupervisorStatus st;
   fill_status(st, false);
   ports_.status(st);
+  publish_config();  // sent again once a second, for live viewers that joined later
   // Once a second the supervisor's own status goes into the session: the recorder's drops and
   // counts, the nodes' liveness, the report in force.
   if (++checks_ % 10 == 0 && opts_.sink) {
@@ -294,7 +295,7 @@ SupervisorCore::Lowering SupervisorCore::lower_fixtures(const std::string& why) 
   }
   *rec.mutable_reply() = r;
   rec.set_time_ns(now_ns_);
-  record(record::topic::kParameterChanges, rec);
+  change_decided(rec);
   if (!r.accepted()) return {false, "could not lower the fixtures: " + r.reason()};
   return {true,
           fmt::format("lowered fixtures (change {}): master {:.0f} N/m, slave {:.0f} N/m",

@@ -107,6 +107,35 @@ void SupervisorCore::publish_report(const std::string& reason) {
                reason);
 }
 
+v1::SystemConfig SupervisorCore::config_in_force() const {
+  v1::SystemConfig c = system_.source().config;
+  *c.mutable_gains() = to_proto(live_.gains);
+  // A side without a fixture keeps none while its stiffness in force is 0.
+  if (c.master().has_fixture() || live_.master_fixture_N_per_m != 0.0) {
+    c.mutable_master()->mutable_fixture()->set_stiffness_n_per_m(live_.master_fixture_N_per_m);
+  }
+  if (c.slave().has_fixture() || live_.slave_fixture_N_per_m != 0.0) {
+    c.mutable_slave()->mutable_fixture()->set_stiffness_n_per_m(live_.slave_fixture_N_per_m);
+  }
+  return c;
+}
+
+void SupervisorCore::publish_config() {
+  if (opts_.replay) return;
+  const v1::SystemConfig c = config_in_force();
+  std::string bytes = c.SerializeAsString();
+  if (bytes == published_config_ && now_ns_ - config_published_ns_ < kConfigRepeatNs) return;
+  ports_.config(c);
+  published_config_ = std::move(bytes);
+  config_published_ns_ = now_ns_;
+}
+
+void SupervisorCore::change_decided(const v1::ParameterChangeRecord& rec) {
+  record(record::topic::kParameterChanges, rec);
+  if (!opts_.replay) ports_.parameter_change(rec);
+  publish_config();  // at once when it changed the parameters in force
+}
+
 void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind,
                            const std::string& side, const std::string& message,
                            const Evidence& evidence, const std::string& action) {
@@ -156,6 +185,7 @@ void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind
 void SupervisorCore::start(std::int64_t now_ns) {
   now_ns_ = now_ns;
   record(record::topic::kConfig, system_.source().config);
+  publish_config();
   publish_report("start");
   record_start();
   // Recording was asked for and could not start: said once, loudly, at start.
@@ -295,7 +325,7 @@ void SupervisorCore::on_change_request(const v1::ParameterChangeRequest& c,
   *rec.mutable_request() = c;
   *rec.mutable_reply() = reply.change();
   rec.set_time_ns(now_ns_);
-  record(record::topic::kParameterChanges, rec);
+  change_decided(rec);
   spdlog::info("change request ({}): {}", c.requested_by(), reply.change().reason());
 }
 
@@ -405,6 +435,7 @@ void SupervisorCore::adopt_parameters_in_force(const v1::Telemetry& t) {
                       live_.slave_fixture_N_per_m),
           {{"change_id", static_cast<double>(a.change_id()), ""}});
     publish_report(fmt::format("adopted the parameters in force (change {})", a.change_id()));
+    publish_config();
   } else if (coupling(t.mode())) {
     alarm(v1::Alarm::WARNING, "supervisor", "system",
           fmt::format("started with the nodes already {} (configured parameters in force)",

@@ -51,6 +51,13 @@ class SupervisorPorts {
   virtual void report(const v1::StabilityReport& r) = 0;
   virtual void alarm(const v1::Alarm& a) = 0;
   virtual void status(const v1::SupervisorStatus& s) = 0;
+  // For live viewers (`teleopctl bridge`, the report endpoint's topics "config" and
+  // "parameter_change"): the configuration in force (config_in_force(): at start, at once when
+  // the parameters in force change, and again every kConfigRepeatNs for viewers that joined
+  // later) and each parameter change the guard decided, as the session records it. A port that
+  // serves no viewer ignores them.
+  virtual void config(const v1::SystemConfig& c) { (void)c; }
+  virtual void parameter_change(const v1::ParameterChangeRecord& r) { (void)r; }
 };
 
 struct SupervisorOptions {
@@ -83,6 +90,7 @@ inline constexpr std::int64_t kCheckPeriodNs = 100'000'000;      // the checks, 
 inline constexpr std::int64_t kHeartbeatNs = 500'000'000;        // a node silent this long
 inline constexpr std::int64_t kRoundTripHoldNs = 5'000'000'000;  // the model's round trip down
 inline constexpr std::int64_t kLoweringRetryNs = 200'000'000;    // a refused lowering again
+inline constexpr std::int64_t kConfigRepeatNs = 1'000'000'000;   // the config in force again
 // An iteration of the owner's loop later than this after the previous one: the supervisor
 // itself stalled (its poll waits at most 20 ms, a status request at most a node command's
 // 0.5 s).
@@ -137,6 +145,9 @@ class SupervisorCore {
   [[nodiscard]] EscalationState escalation() const { return ladder_.state(); }
   [[nodiscard]] const LiveInputs& live() const { return live_; }
   [[nodiscard]] const v1::StabilityReport& last_report() const { return report_; }
+  // The configuration file as read, with the gains and fixture stiffnesses in force (a guarded
+  // change applied, a lowering, or the values adopted from running nodes).
+  [[nodiscard]] v1::SystemConfig config_in_force() const;
   [[nodiscard]] bool lowering_pending() const { return lowering_pending_; }
 
  private:
@@ -188,6 +199,11 @@ class SupervisorCore {
   [[nodiscard]] v1::StabilityReport make_report(const Assessment& a,
                                                 const std::string& reason) const;
   void publish_report(const std::string& reason);
+  // config_in_force() to the ports when it differs from the last sent or kConfigRepeatNs
+  // passed since.
+  void publish_config();
+  // A change decided (applied or refused, dry run or not): recorded and published.
+  void change_decided(const v1::ParameterChangeRecord& rec);
   void alarm(v1::Alarm::Severity severity, const std::string& kind, const std::string& side,
              const std::string& message, const Evidence& evidence, const std::string& action = "");
   v1::ParameterChangeReply apply_change(const ChangeRequest& change, bool dry_run,
@@ -254,6 +270,8 @@ class SupervisorCore {
   std::uint64_t change_id_{0};
   std::uint64_t last_sent_change_id_{0};  // the newest change number sent, taken or not
   v1::StabilityReport report_{};
+  std::string published_config_{};  // config_in_force() as last sent to the ports
+  std::int64_t config_published_ns_{0};
   std::deque<v1::Alarm> recent_alarms_{};
   std::map<std::string, std::int64_t> last_alarm_ns_{};
   bool heard_master_{false};

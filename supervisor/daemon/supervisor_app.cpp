@@ -77,6 +77,10 @@ struct SupervisorApp::Impl final : SupervisorPorts {
   void report(const v1::StabilityReport& r) override { publish("report", r.SerializeAsString()); }
   void alarm(const v1::Alarm& a) override { publish("alarm", a.SerializeAsString()); }
   void status(const v1::SupervisorStatus& s) override { publish("status", s.SerializeAsString()); }
+  void config(const v1::SystemConfig& c) override { publish("config", c.SerializeAsString()); }
+  void parameter_change(const v1::ParameterChangeRecord& r) override {
+    publish("parameter_change", r.SerializeAsString());
+  }
 
   // One topic-tagged message on the report endpoint; never throws (a refused send is dropped,
   // as a full queue drops it).

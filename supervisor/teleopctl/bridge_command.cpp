@@ -24,6 +24,7 @@
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/local_launch.hpp"
 #include "supervisor/teleopctl/node_command.hpp"
+#include "teleop/v1/config.pb.h"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
 
@@ -76,7 +77,9 @@ zmq::socket_t subscriber(zmq::context_t& ctx, const Source& src, const std::stri
   s.set(zmq::sockopt::maxmsgsize, std::int64_t{16} << 20);
   (void)transport::apply_link_security(ctx, s, src.endpoint, transport::LinkRole::kClient, sec);
   if (supervisor) {
-    for (const char* topic : {"report", "alarm", "status"}) s.set(zmq::sockopt::subscribe, topic);
+    for (const char* topic : {"report", "alarm", "status", "config", "parameter_change"}) {
+      s.set(zmq::sockopt::subscribe, topic);
+    }
   } else {
     s.set(zmq::sockopt::subscribe, "");
   }
@@ -156,13 +159,25 @@ class SupervisorFeed {
             server.add_channel(protobuf_channel(record::topic::kAlarms, v1::Alarm::descriptor()))),
         status_(server.add_channel(
             protobuf_channel(record::topic::kStatus, v1::SupervisorStatus::descriptor()))),
-        log_(server.add_channel(
-            protobuf_channel(record::topic::kLog, foxglove::Log::descriptor()))) {}
+        log_(
+            server.add_channel(protobuf_channel(record::topic::kLog, foxglove::Log::descriptor()))),
+        // The configuration in force: the supervisor sends it at start, when a change applies
+        // and every second; a new subscriber gets the newest at once.
+        config_(server.add_channel(
+            protobuf_channel(record::topic::kConfig, v1::SystemConfig::descriptor(), true))),
+        changes_(server.add_channel(protobuf_channel(record::topic::kParameterChanges,
+                                                     v1::ParameterChangeRecord::descriptor()))) {}
 
   void take(std::string_view topic, const zmq::message_t& body) {
     const std::string_view bytes(static_cast<const char*>(body.data()), body.size());
     const auto now = static_cast<std::uint64_t>(wall_ns());
     if (topic == "report") publish_report(now, std::string(bytes));
+    if (topic == "parameter_change") server_.publish(changes_, now, bytes);
+    // Once per configuration: its repetitions for late joiners are not new messages.
+    if (topic == "config" && bytes != last_config_) {
+      server_.publish(config_, now, bytes);
+      last_config_ = std::string(bytes);
+    }
     if (topic == "alarm") {
       server_.publish(alarms_, now, bytes);
       v1::Alarm a;
@@ -191,7 +206,10 @@ class SupervisorFeed {
   std::uint32_t alarms_;
   std::uint32_t status_;
   std::uint32_t log_;
+  std::uint32_t config_;
+  std::uint32_t changes_;
   std::string last_report_{};
+  std::string last_config_{};
 
   // A report once: the same report from the summary again is not a new message.
   void publish_report(std::uint64_t now, std::string bytes) {
@@ -352,7 +370,9 @@ std::string bridge_usage() {
          "the channels of a recorded session live, protobuf with their schemas:\n"
          "/master/cycle and /slave/cycle (one teleop.v1.CycleRecord per control cycle),\n"
          "/master/telemetry, /slave/telemetry, /supervisor/stability, /supervisor/alarms,\n"
-         "/supervisor/log (the alarms as foxglove.Log), /supervisor/status. It subscribes\n"
+         "/supervisor/log (the alarms as foxglove.Log), /supervisor/status, /config (the\n"
+         "configuration in force, again when a change applies) and\n"
+         "/supervisor/parameter_changes (each change the supervisor decided). It subscribes\n"
          "to the nodes' telemetry and the supervisor's report endpoint like the console\n"
          "(CONFIG gives the endpoints and the servers' keys; --key is this client's key, a\n"
          "read-only console key is enough; without one, the keys of a live\n"

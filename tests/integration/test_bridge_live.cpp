@@ -8,6 +8,7 @@
 // refuses to listen off loopback unless told.
 #include <arpa/inet.h>
 #include <google/protobuf/descriptor.h>
+#include <google/protobuf/text_format.h>
 #include <gtest/gtest.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -17,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
@@ -66,8 +68,9 @@ struct SystemPorts {
   int bridge{free_port()};
 };
 
-std::string system_config(const SystemPorts& p, const fs::path& record_dir) {
-  return "round_trip_delay_samples: 2\n" +
+std::string system_config(const SystemPorts& p, const fs::path& record_dir,
+                          const std::string& extra = "") {
+  return "round_trip_delay_samples: 2\n" + extra +
          paddles_system(node_section(p.nodes, true, "", 80), node_section(p.nodes, false, "", 80),
                         "fixture { stiffness_N_per_m: 1000 position_m: 0.005 }", kPushN) +
          "supervisor { report_endpoint: \"" + tcp(p.report) + "\" request_endpoint: \"" +
@@ -79,8 +82,10 @@ bool linked(const v1::Telemetry& t) { return t.link().accepted() > 0; }
 // Master, slave, supervisor and the bridge from one file; both nodes engaged and settled.
 class BridgeSystem {
  public:
-  BridgeSystem() {
-    config_ = dir_.write("system.textproto", system_config(ports_, dir_.path() / "sessions"));
+  // `extra`: more of the file (e.g. kAllowUnauthenticatedRetune for a guarded change).
+  explicit BridgeSystem(const std::string& extra = "") {
+    config_ =
+        dir_.write("system.textproto", system_config(ports_, dir_.path() / "sessions", extra));
     supervisor_ = std::make_unique<Process>(
         SUPERVISOR_BIN, std::vector<std::string>{config_.string()}, dir_.path() / "supervisor.log");
     master_ = std::make_unique<Process>(MASTER_BIN, std::vector<std::string>{config_.string()},
@@ -137,6 +142,9 @@ class BridgeSystem {
   }
 
   [[nodiscard]] int bridge_port() const { return ports_.bridge; }
+  [[nodiscard]] int request_port() const { return ports_.request; }
+  [[nodiscard]] const fs::path& config_file() const { return config_; }
+  [[nodiscard]] const fs::path& dir() const { return dir_.path(); }
   [[nodiscard]] int slave_command_port() const { return ports_.nodes.slave_command; }
   [[nodiscard]] Process& bridge() { return *bridge_; }
   [[nodiscard]] std::string logs() const {
@@ -225,7 +233,9 @@ TEST(BridgeLive, FoxgloveClientDecodesEveryCycleAt1kHzWithTheEquilibriumOfTheLaw
       {"/supervisor/stability", "teleop.v1.StabilityReport"},
       {"/supervisor/alarms", "teleop.v1.Alarm"},
       {"/supervisor/log", "foxglove.Log"},
-      {"/supervisor/status", "teleop.v1.SupervisorStatus"}};
+      {"/supervisor/status", "teleop.v1.SupervisorStatus"},
+      {"/config", "teleop.v1.SystemConfig"},
+      {"/supervisor/parameter_changes", "teleop.v1.ParameterChangeRecord"}};
   for (const auto& [topic, type] : expected) {
     const Json* c = channel(s, topic);
     ASSERT_NE(c, nullptr) << topic << " not advertised: " << s["channels"];
@@ -378,6 +388,160 @@ TEST(BridgeLive, AnAlarmArrivesAsAlarmAndAsFoxgloveLogWithItsSeverity) {
   // Its timestamp is the wall clock, within seconds of this test's.
   const double seconds = std::stod(log["timestamp"]["seconds"].get<std::string>());
   EXPECT_NEAR(seconds, static_cast<double>(wall_ns()) * 1e-9, 10.0);
+}
+
+// The summary check.mjs printed last in a client's log (null when it printed none).
+Json summary_in(const std::string& log) {
+  const auto at = log.rfind("\n{");
+  return Json::parse(at == std::string::npos ? log : log.substr(at + 1), nullptr, false);
+}
+
+// The gains of a decoded teleop.v1.SystemConfig against the file's, field by field.
+void expect_gains(const Json& gains, const v1::Gains& file, const std::string& what) {
+  const auto* d = v1::Gains::descriptor();
+  const auto* r = v1::Gains::GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const auto* f = d->field(i);
+    ASSERT_TRUE(gains.contains(f->name())) << what << ": no gains." << f->name() << " in " << gains;
+    EXPECT_EQ(gains[f->name()].get<double>(), r->GetDouble(file, f)) << what << ": " << f->name();
+  }
+}
+
+// /config is the configuration in force, latched: a client that subscribes after the bridge
+// sent it gets it at once (the bridge sends each configuration once; the supervisor's repeats
+// every second are not new messages), equal to the file. A guarded `teleopctl set` then
+// arrives on /supervisor/parameter_changes as the supervisor decided it, with the new values,
+// followed by /config again with them and the rest of the file unchanged.
+TEST(BridgeLive, TheConfigurationInForceIsLatchedAndAGuardedChangeArrivesWithItsValues) {
+  ASSERT_TRUE(js_client_installed()) << kInstallJs;
+  // Plaintext loopback: the supervisor's retunes need the opt-in.
+  BridgeSystem sys(kAllowUnauthenticatedRetune);
+  ASSERT_NO_FATAL_FAILURE(sys.start_engaged_with_bridge());
+  // The file as written, read here with protobuf's own text parser.
+  v1::SystemConfig file;
+  {
+    std::ifstream in(sys.config_file());
+    std::stringstream text;
+    text << in.rdbuf();
+    ASSERT_TRUE(google::protobuf::TextFormat::ParseFromString(text.str(), &file));
+  }
+  ASSERT_EQ(file.gains().kps(), kKps);
+  const std::string url = "ws://127.0.0.1:" + std::to_string(sys.bridge_port());
+  const auto client = [&](const std::string& name, const std::vector<std::string>& topics) {
+    std::vector<std::string> args = {"WS_CHECK_BOUND_S=40", NODE_BIN,
+                                     std::string(WS_JS_DIR) + "/check.mjs", url, "1"};
+    args.insert(args.end(), topics.begin(), topics.end());
+    return std::make_unique<Process>("/usr/bin/env", args, sys.dir() / name);
+  };
+  // A first client takes the configuration as the bridge got it from the supervisor.
+  auto first = client("first.log", {"/config:1"});
+  ASSERT_EQ(first->wait(), 0) << first->log() << sys.logs();
+  const Json one = summary_in(first->log());
+  ASSERT_TRUE(one.is_object()) << first->log();
+  ASSERT_EQ(one["topics"]["/config"]["count"], 1) << one.dump(1);
+  const Json& sent = one["topics"]["/config"]["last"];
+
+  // The second client: the same message at once, from the latch (its timestamp is when the
+  // bridge received it, before this client existed).
+  auto second = client("second.log", {"/config:2", "/supervisor/parameter_changes:1"});
+  ASSERT_TRUE(eventually([&] {
+    return second->log().find("first message on /config") != std::string::npos ||
+           second->exited().has_value();
+  })) << second->log();
+  ASSERT_FALSE(second->exited().has_value()) << second->log();
+  const std::string sup = " --supervisor 127.0.0.1:" + std::to_string(sys.request_port());
+  const std::string set = "set slave.fixture.stiffness_N_per_m=800 gains.kps=550" + sup;
+  CliResult r = teleopctl(set);
+  // A refusal for a round trip a host stall made long is the supervisor right; asked again.
+  for (int i = 0; i < 20 && r.exit_code == 3 && r.out.find("round trip") != std::string::npos;
+       ++i) {
+    std::cout << "refused (host stall?), asked again: " << r.out;
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+    r = teleopctl(set);
+  }
+  ASSERT_EQ(r.exit_code, 0) << r.out << sys.logs();
+  ASSERT_EQ(second->wait(), 0) << second->log() << sys.logs();
+  const Json s = summary_in(second->log());
+  ASSERT_TRUE(s.is_object()) << second->log();
+  EXPECT_TRUE(s["errors"].empty()) << s["errors"];
+  const Json* config_channel = channel(s, "/config");
+  ASSERT_NE(config_channel, nullptr);
+  EXPECT_EQ((*config_channel)["schemaName"], "teleop.v1.SystemConfig");
+
+  const Json& configs = s["topics"]["/config"]["all"];
+  ASSERT_EQ(configs.size(), 2U) << configs.dump(1);
+  // The latched configuration: the one the first client got, with the same timestamp, and the
+  // file's rate, gains and fixture.
+  EXPECT_EQ(configs[0], sent);
+  EXPECT_EQ(s["topics"]["/config"]["first_receive_ns"],
+            one["topics"]["/config"]["first_receive_ns"]);
+  EXPECT_EQ(configs[0]["sample_rate_hz"].get<double>(), file.sample_rate_hz());
+  EXPECT_EQ(configs[0]["sample_rate_hz"].get<double>(), kRateHz);
+  expect_gains(configs[0]["gains"], file.gains(), "latched /config");
+  EXPECT_EQ(configs[0]["slave"]["fixture"]["stiffness_N_per_m"].get<double>(), kFixtureK);
+  EXPECT_EQ(configs[0]["round_trip_delay_samples"].get<double>(), 2.0);
+
+  std::cout << "latched /config: sample_rate_hz " << configs[0]["sample_rate_hz"] << ", gains "
+            << configs[0]["gains"].dump() << ", slave fixture "
+            << configs[0]["slave"]["fixture"].dump() << "\n/config after the change: gains "
+            << configs[1]["gains"].dump() << ", slave fixture "
+            << configs[1]["slave"]["fixture"].dump() << "\n";
+
+  // The change as the supervisor decided it: applied, with what was asked.
+  const Json* applied = nullptr;
+  for (const Json& c : s["topics"]["/supervisor/parameter_changes"]["all"]) {
+    if (c["reply"]["accepted"].get<bool>()) applied = &c;
+  }
+  ASSERT_NE(applied, nullptr) << s["topics"]["/supervisor/parameter_changes"].dump(1);
+  EXPECT_EQ((*applied)["request"]["slave_fixture_stiffness_N_per_m"].get<double>(), 800.0);
+  // teleopctl set sends every gain: those in force, kps changed.
+  v1::SystemConfig expected = file;
+  expected.mutable_slave()->mutable_fixture()->set_stiffness_n_per_m(800.0);
+  expected.mutable_gains()->set_kps(550.0);
+  expect_gains((*applied)["request"]["gains"], expected.gains(), "the request");
+  EXPECT_FALSE((*applied)["request"]["dry_run"].get<bool>());
+  EXPECT_NE(std::stoull((*applied)["reply"]["change_id"].get<std::string>()), 0U);
+  EXPECT_EQ((*applied)["reply"]["prediction"]["slave_fixture_stiffness_N_per_m"].get<double>(),
+            800.0);
+  // The teleopctl's own output names the same change.
+  EXPECT_NE(r.out.find("change " + (*applied)["reply"]["change_id"].get<std::string>() +
+                       " applies at master sequence " +
+                       (*applied)["reply"]["apply_at_master_sequence"].get<std::string>()),
+            std::string::npos)
+      << r.out;
+
+  // /config again: the new values, everything else as in the file.
+  const Json& now = configs[1];
+  EXPECT_EQ(now["slave"]["fixture"]["stiffness_N_per_m"].get<double>(), 800.0);
+  EXPECT_EQ(now["slave"]["fixture"]["position_m"].get<double>(), kFixtureP);
+  expect_gains(now["gains"], expected.gains(), "/config after the change");
+  EXPECT_EQ(now["sample_rate_hz"].get<double>(), kRateHz);
+  Json unchanged_now = now;
+  Json unchanged_then = configs[0];
+  for (Json* j : {&unchanged_now, &unchanged_then}) {
+    j->erase("gains");
+    (*j)["slave"]["fixture"].erase("stiffness_N_per_m");
+  }
+  EXPECT_EQ(unchanged_now, unchanged_then);
+  EXPECT_GE(s["topics"]["/config"]["last_receive_ns"].get<double>(),
+            s["topics"]["/supervisor/parameter_changes"]["first_receive_ns"].get<double>());
+
+  // A bridge started after the change serves the configuration in force, not the file: the
+  // supervisor sends it again every second.
+  const int late_port = free_port();
+  Process late(TELEOPCTL_PATH,
+               {"bridge", sys.config_file().string(), "--port", std::to_string(late_port)},
+               sys.dir() / "late-bridge.log");
+  ASSERT_TRUE(eventually([&] { return late.log().find("on ws://") != std::string::npos; }))
+      << late.log();
+  Process third("/usr/bin/env",
+                {"WS_CHECK_BOUND_S=40", NODE_BIN, std::string(WS_JS_DIR) + "/check.mjs",
+                 "ws://127.0.0.1:" + std::to_string(late_port), "1", "/config:1"},
+                sys.dir() / "third.log");
+  ASSERT_EQ(third.wait(), 0) << third.log() << late.log();
+  const Json t = summary_in(third.log());
+  ASSERT_TRUE(t.is_object()) << third.log();
+  EXPECT_EQ(t["topics"]["/config"]["last"], now) << t["topics"]["/config"].dump(1);
 }
 
 // Secure by default (the launch's ephemeral CURVE keys): a bridge given no key finds the live

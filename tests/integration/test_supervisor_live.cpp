@@ -251,7 +251,8 @@ class ReportTap {
           // "report") is what zmq::buffer("report") sends: counted as a wrong frame, and read
           // on so the rest of the test still shows what the supervisor did.
           std::string_view k = kind.to_string_view();
-          if (k != "alarm" && k != "report" && k != "status") {
+          if (k != "alarm" && k != "report" && k != "status" && k != "config" &&
+              k != "parameter_change") {
             if (wrong_frames_.size() < 4) wrong_frames_.emplace_back(k);
             ++wrong_frame_count_;
             if (!k.empty() && k.back() == '\0') k.remove_suffix(1);
@@ -296,7 +297,9 @@ class ReportTap {
     std::lock_guard lock(mutex_);
     return last_status_;
   }
-  // Topic frames other than exactly "report", "alarm" or "status", as received (escaped).
+  // Topic frames other than exactly "report", "alarm", "status", "config" or
+  // "parameter_change" (for live viewers, tested in test_bridge_live.cpp), as received
+  // (escaped).
   [[nodiscard]] std::string wrong_frames() const {
     std::lock_guard lock(mutex_);
     if (wrong_frame_count_ == 0) return "";
@@ -747,8 +750,9 @@ TEST(SupervisorLive, GuardRefusesAStiffnessAboveTheAnalysedLimitAndBothNodesRamp
   for (const auto& a : reports.alarms()) {
     EXPECT_LT(a.severity(), v1::Alarm::ACTION) << describe(a);
   }
-  EXPECT_EQ(reports.wrong_frames(), "") << "the report endpoint's topic frames must be exactly "
-                                           "\"report\" / \"alarm\" / \"status\"";
+  EXPECT_EQ(reports.wrong_frames(), "")
+      << "the report endpoint's topic frames must be exactly "
+         "\"report\" / \"alarm\" / \"status\" / \"config\" / \"parameter_change\"";
 }
 
 TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStopsOrNodesDisengage) {
@@ -990,8 +994,9 @@ TEST(SupervisorLive, BuzzingWallIsDetectedTheFixtureLoweredAndTheOscillationStop
           << describe(alarms);
     }
   }
-  EXPECT_EQ(reports.wrong_frames(), "") << "the report endpoint's topic frames must be exactly "
-                                           "\"report\" / \"alarm\" / \"status\"";
+  EXPECT_EQ(reports.wrong_frames(), "")
+      << "the report endpoint's topic frames must be exactly "
+         "\"report\" / \"alarm\" / \"status\" / \"config\" / \"parameter_change\"";
 }
 
 // Without a terminal (issue 6 groundwork): `teleopctl status --json` gives the supervisor's own

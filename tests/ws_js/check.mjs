@@ -4,20 +4,32 @@
 // named, decodes each message with protobufjs against the schema the channel advertised (a
 // base64 FileDescriptorSet), and after WINDOW_S seconds of messages on every subscribed topic
 // prints one JSON summary on stdout for the C++ test to judge (tests/integration/
-// test_bridge_live.cpp). Exit 0 once the summary is printed, 1 on a protocol or decode error,
-// 2 on a timeout (the summary then says what was missing).
+// test_bridge_live.cpp). A topic named TOPIC:N is instead read, every message kept, until N
+// messages arrived on it and every other topic had its window (for channels that speak when
+// something happens: the configuration in force, the parameter changes). The first message on
+// each topic is said on stderr ("first message on TOPIC"), so a test can act once the client
+// has it. Exit 0 once the summary is printed, 1
+// on a protocol or decode error, 2 on a timeout (the summary then says what was missing).
 //
-//   [WS_CHECK_BOUND_S=S] node check.mjs ws://127.0.0.1:PORT WINDOW_S TOPIC [TOPIC...]
+//   [WS_CHECK_BOUND_S=S] node check.mjs ws://127.0.0.1:PORT WINDOW_S TOPIC[:N] [TOPIC[:N]...]
 import FoxgloveClientModule from "@foxglove/ws-protocol";
 import protobuf from "protobufjs";
 import "protobufjs/ext/descriptor/index.js";
 import WebSocket from "ws";
 
 const FoxgloveClient = FoxgloveClientModule.FoxgloveClient ?? FoxgloveClientModule.default;
-const [url, windowArg, ...topics] = process.argv.slice(2);
+const [url, windowArg, ...topicArgs] = process.argv.slice(2);
 const windowS = Number(windowArg);
-if (!url || !(windowS > 0) || topics.length === 0) {
-  console.error("usage: node check.mjs ws://HOST:PORT WINDOW_S TOPIC [TOPIC...]");
+const counted = new Map(); // topic -> messages to wait for (TOPIC:N)
+const topics = topicArgs.map((arg) => {
+  const colon = arg.lastIndexOf(":");
+  if (colon < 0) return arg;
+  counted.set(arg.slice(0, colon), Number(arg.slice(colon + 1)));
+  return arg.slice(0, colon);
+});
+if (!url || !(windowS > 0) || topics.length === 0 ||
+    [...counted.values()].some((n) => !(Number.isInteger(n) && n > 0))) {
+  console.error("usage: node check.mjs ws://HOST:PORT WINDOW_S TOPIC[:N] [TOPIC[:N]...]");
   process.exit(2);
 }
 
@@ -71,8 +83,9 @@ function take(topic, receiveNs, msg) {
     s.modes[mode] = (s.modes[mode] ?? 0) + 1;
   }
   s.last = msg;
-  if (topic === "/supervisor/alarms" || topic === "/supervisor/log" ||
-      topic === "/supervisor/stability") {
+  // Every message of the channels that speak when something happens.
+  if (!topic.endsWith("/cycle") && !topic.endsWith("/telemetry") &&
+      topic !== "/supervisor/status") {
     s.all = s.all ?? [];
     if (s.all.length < 200) s.all.push(msg);
   }
@@ -99,7 +112,10 @@ const started = new Map(); // topic -> performance.now() of its first message
 // The bound: WS_CHECK_BOUND_S seconds if set, else the window plus 20 s.
 const boundS = Number(process.env.WS_CHECK_BOUND_S ?? windowS + 20);
 const timeout = setTimeout(() => {
-  summary.errors.push(`timeout: not ${windowS} s of messages on every topic within ${boundS} s`);
+  const short = topics.filter((t) => counted.has(t)
+    ? (summary.topics[t]?.count ?? 0) < counted.get(t) : !started.has(t));
+  summary.errors.push(`timeout: not ${windowS} s of messages (or the N of TOPIC:N) on every ` +
+                      `topic within ${boundS} s; short: ${short.join(" ")}`);
   finish(2);
 }, boundS * 1000);
 
@@ -149,16 +165,24 @@ client.on("message", ({ subscriptionId, timestamp, data }) => {
     return;
   }
   const now = performance.now();
-  if (!started.has(sub.topic)) started.set(sub.topic, now);
-  if (now - started.get(sub.topic) <= windowS * 1000) take(sub.topic, Number(timestamp), msg);
+  if (!started.has(sub.topic)) {
+    started.set(sub.topic, now);
+    console.error(`first message on ${sub.topic}`);
+  }
+  if (counted.has(sub.topic) || now - started.get(sub.topic) <= windowS * 1000) {
+    take(sub.topic, Number(timestamp), msg);
+  }
   checkDone();
 });
 
-// Done once every topic has had WINDOW_S seconds since its first message (checked on each
-// message and every 50 ms, for topics that go quiet such as the alarms).
+// Done once every topic has had WINDOW_S seconds since its first message, or its N messages
+// (checked on each message and every 50 ms, for topics that go quiet such as the alarms).
 function checkDone() {
   const now = performance.now();
-  if (topics.every((t) => started.has(t) && now - started.get(t) > windowS * 1000)) {
+  const done = (t) => counted.has(t)
+    ? (summary.topics[t]?.count ?? 0) >= counted.get(t)
+    : started.has(t) && now - started.get(t) > windowS * 1000;
+  if (topics.every(done)) {
     clearTimeout(timeout);
     client.close();
     finish(0);

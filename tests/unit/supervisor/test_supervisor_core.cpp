@@ -147,6 +147,14 @@ class FakeNodes final : public SupervisorPorts {
   void report(const v1::StabilityReport& r) override { reports.push_back(r); }
   void alarm(const v1::Alarm& a) override { alarms.push_back(a); }
   void status(const v1::SupervisorStatus&) override { ++statuses; }
+  void config(const v1::SystemConfig& c) override {
+    configs.push_back({c, now_ns});
+    published.emplace_back("config");
+  }
+  void parameter_change(const v1::ParameterChangeRecord& r) override {
+    changes.push_back(r);
+    published.emplace_back("parameter_change");
+  }
 
   // Runs the nodes and the core from `from_ns` to `to_ns`: a cycle each millisecond,
   // telemetry every 20 ms, the core's tick every 10 ms (its owner polls for 20 ms at most).
@@ -200,6 +208,13 @@ class FakeNodes final : public SupervisorPorts {
   std::vector<v1::Alarm> alarms;
   std::vector<v1::StabilityReport> reports;
   int statuses{0};
+  struct Config {
+    v1::SystemConfig config;
+    std::int64_t time_ns;
+  };
+  std::vector<Config> configs;                     // "config" for live viewers, with the time
+  std::vector<v1::ParameterChangeRecord> changes;  // "parameter_change"
+  std::vector<std::string> published;              // both, in order
   int refuse_retunes{0};         // the next RETUNEs refused, whichever node gets them
   int slave_refuses_retunes{0};  // the next RETUNEs the slave refuses
   std::int64_t round_trip_p99_ns{500'000};
@@ -530,6 +545,78 @@ TEST(SupervisorCore, AChangeOneNodeRefusesIsRolledBackOnBoth) {
   EXPECT_EQ(crit.back().severity(), v1::Alarm::CRITICAL);
   EXPECT_NE(crit.back().action().find("e-stopped both nodes"), std::string::npos)
       << crit.back().action();
+}
+
+// For live viewers (teleopctl bridge): the configuration in force -- the file's, with the
+// values of each applied change -- at start, at once after a change applied (after that
+// change's record), and again once a second; every change decided, applied or refused,
+// as its record.
+TEST(SupervisorCore, ItPublishesTheConfigurationInForceAndEveryChangeDecided) {
+  const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
+  FakeNodes nodes(c);
+  SupervisorCore core(c, {}, nodes);
+  nodes.now_ns = kT0;
+  core.start(kT0);
+  ASSERT_EQ(nodes.configs.size(), 1u);
+  // At start: the file, byte for byte (nothing changed yet).
+  EXPECT_EQ(nodes.configs[0].config.SerializeAsString(), c.config.SerializeAsString());
+  EXPECT_EQ(nodes.configs[0].config.sample_rate_hz(), 1000.0);
+  EXPECT_EQ(nodes.configs[0].config.slave().fixture().stiffness_n_per_m(), 1500.0);
+  EXPECT_FALSE(nodes.configs[0].config.master().has_fixture());  // the file has none
+  // Again once a second while nothing changes: at 1, 2 and 3 s.
+  nodes.run(core, kT0, kT0 + 3050 * kMs, still);
+  ASSERT_EQ(nodes.configs.size(), 4u);
+  for (std::size_t i = 1; i < nodes.configs.size(); ++i) {
+    EXPECT_EQ(nodes.configs[i].time_ns - nodes.configs[i - 1].time_ns, 1000 * kMs);
+    EXPECT_EQ(nodes.configs[i].config.SerializeAsString(), c.config.SerializeAsString());
+  }
+  EXPECT_TRUE(nodes.changes.empty());
+
+  // A guarded change applied: its record, then at once the configuration with its values
+  // (the rest of the file as it was).
+  nodes.published.clear();
+  v1::SupervisorRequest change;
+  change.mutable_change()->set_slave_fixture_stiffness_n_per_m(1000.0);
+  // A request carries every gain (teleopctl set sends those in force, one changed).
+  *change.mutable_change()->mutable_gains() = c.config.gains();
+  change.mutable_change()->mutable_gains()->set_kps(550.0);
+  change.mutable_change()->set_requested_by("test");
+  const v1::SupervisorReply applied = core.on_request(change, "", kT0 + 3050 * kMs);
+  ASSERT_TRUE(applied.change().accepted()) << applied.change().reason();
+  EXPECT_EQ(nodes.published, (std::vector<std::string>{"parameter_change", "config"}));
+  ASSERT_EQ(nodes.changes.size(), 1u);
+  EXPECT_EQ(nodes.changes[0].request().slave_fixture_stiffness_n_per_m(), 1000.0);
+  EXPECT_EQ(nodes.changes[0].request().requested_by(), "test");
+  EXPECT_TRUE(nodes.changes[0].reply().accepted());
+  EXPECT_EQ(nodes.changes[0].reply().change_id(), applied.change().change_id());
+  const v1::SystemConfig& now = nodes.configs.back().config;
+  EXPECT_EQ(now.slave().fixture().stiffness_n_per_m(), 1000.0);
+  EXPECT_EQ(now.slave().fixture().position_m(), 0.006);
+  EXPECT_EQ(now.gains().kps(), 550.0);
+  EXPECT_EQ(now.gains().kpm(), 600.0);
+  EXPECT_EQ(now.gains().kdm(), 2.0);
+  v1::SystemConfig expected = c.config;
+  expected.mutable_slave()->mutable_fixture()->set_stiffness_n_per_m(1000.0);
+  expected.mutable_gains()->set_kps(550.0);
+  EXPECT_EQ(now.SerializeAsString(), expected.SerializeAsString());
+  EXPECT_EQ(core.config_in_force().SerializeAsString(), expected.SerializeAsString());
+
+  // A refused change (far beyond the stable stiffness) and a dry run: recorded and published,
+  // the configuration in force unchanged and so not sent again before its second is up.
+  const std::size_t configs_before = nodes.configs.size();
+  v1::SupervisorRequest unstable;
+  unstable.mutable_change()->set_slave_fixture_stiffness_n_per_m(1e6);
+  EXPECT_FALSE(core.on_request(unstable, "", kT0 + 3060 * kMs).change().accepted());
+  v1::SupervisorRequest dry = change;
+  dry.mutable_change()->set_slave_fixture_stiffness_n_per_m(900.0);
+  dry.mutable_change()->set_dry_run(true);
+  EXPECT_TRUE(core.on_request(dry, "", kT0 + 3070 * kMs).change().accepted());
+  ASSERT_EQ(nodes.changes.size(), 3u);
+  EXPECT_FALSE(nodes.changes[1].reply().accepted());
+  EXPECT_EQ(nodes.changes[1].request().slave_fixture_stiffness_n_per_m(), 1e6);
+  EXPECT_TRUE(nodes.changes[2].request().dry_run());
+  EXPECT_EQ(nodes.configs.size(), configs_before);
+  EXPECT_EQ(core.config_in_force().SerializeAsString(), expected.SerializeAsString());
 }
 
 TEST(SupervisorCore, AReadOnlyKeyMayAskForStatusAndEStopButNotForAChange) {
