@@ -29,7 +29,7 @@ root = sys.argv[1]
 LAYERS = [
     ["proto", "common/core"],
     ["common/control", "common/stability", "common/rt", "common/transport", "common/record",
-     "common/bridge"],
+     "common/bridge", "common/kinematics"],
     ["common/sim"],
     ["common/device"],
     ["common/scene", "common/node"],
@@ -41,7 +41,8 @@ LAYERS = [
 ]
 # The real-time side and the plain-data libraries see no protobuf (docs/architecture.md §3.2).
 NO_PROTOBUF = ["common/core", "common/control", "common/stability", "common/sim",
-               "common/device", "common/rt", "common/scene", "common/node", "common/bridge"]
+               "common/device", "common/rt", "common/scene", "common/node", "common/bridge",
+               "common/kinematics"]
 
 SCANNED = ["common", "supervisor", "master_node", "slave_node", "python"]
 # Top-level directories of the repository that are not product code: never included by it.
