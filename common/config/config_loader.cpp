@@ -229,15 +229,6 @@ void require_section(const LoadedConfig& config, std::vector<std::string>& missi
   }
 }
 
-void throw_missing(const std::vector<std::string>& missing) {
-  if (missing.empty()) return;
-  std::string text;
-  for (const std::string& line : missing) {
-    if (!text.empty()) text += '\n';
-    text += line;
-  }
-  throw ConfigError(text);
-}
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -307,7 +298,7 @@ TeleopParams teleop_params_of_validated(const LoadedConfig& config) {
   require_section(config, missing, c.has_slave() && c.slave().has_device(), "slave.device",
                   kPurpose);
   require_section(config, missing, c.has_gains(), "gains", kPurpose);
-  throw_missing(missing);
+  text_format::throw_if_any(missing);
 
   TeleopParams params;
   params.sample_rate_hz = c.sample_rate_hz();
@@ -362,7 +353,7 @@ ForceLoopParams force_loop_params_of_validated(const LoadedConfig& config) {
   std::vector<std::string> missing;
   require_section(config, missing, config.config.has_force_loop(), "force_loop",
                   "analyse the force loop");
-  throw_missing(missing);
+  text_format::throw_if_any(missing);
   const teleop::v1::ForceLoop& loop = config.config.force_loop();
   ForceLoopParams params;
   params.mass_kg = loop.mass_kg();

@@ -213,15 +213,17 @@ void Problems::add(std::string_view path, const std::string& message) {
   add(resolve(path), message);
 }
 
-void Problems::throw_if_any() const {
-  if (lines_.empty()) return;
+void throw_if_any(const std::vector<std::string>& lines) {
+  if (lines.empty()) return;
   std::string text;
-  for (const std::string& line : lines_) {
+  for (const std::string& line : lines) {
     if (!text.empty()) text += '\n';
     text += line;
   }
   throw ConfigError(text);
 }
+
+void Problems::throw_if_any() const { text_format::throw_if_any(lines_); }
 
 namespace {
 

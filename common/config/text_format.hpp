@@ -54,6 +54,9 @@ using FieldPath = std::vector<Step>;
 // "--set ..." when an override set the field or created a section around it.
 [[nodiscard]] std::string origin_of(const LoadedConfig& config, const FieldPath& path);
 
+// Throws ConfigError with `lines`, one a line in their order; nothing when there are none.
+void throw_if_any(const std::vector<std::string>& lines);
+
 // Collects every problem, each "ORIGIN: PATH: message", then throws them together.
 class Problems {
  public:

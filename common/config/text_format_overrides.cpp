@@ -30,35 +30,31 @@ std::string_view without_plus(std::string_view text) {
   return text.size() > 1 && text.front() == '+' && text[1] != '-' ? text.substr(1) : text;
 }
 
-template <typename Integer>
-std::optional<Integer> parse_integer(std::string_view text, std::string& why) {
+// The whole of `text` (a leading '+' allowed) as a Number; otherwise nullopt and `why`: "out of
+// range", or `not_one` when it is not a Number at all.
+template <typename Number>
+std::optional<Number> parse_whole(std::string_view text, std::string& why, const char* not_one) {
   text = without_plus(text);
-  Integer value{};
+  Number value{};
   const auto result = std::from_chars(text.data(), text.data() + text.size(), value);
   if (result.ec == std::errc::result_out_of_range) {
     why = "out of range";
     return std::nullopt;
   }
   if (result.ec != std::errc{} || result.ptr != text.data() + text.size()) {
-    why = "not an integer";
+    why = not_one;
     return std::nullopt;
   }
   return value;
 }
 
+template <typename Integer>
+std::optional<Integer> parse_integer(std::string_view text, std::string& why) {
+  return parse_whole<Integer>(text, why, "not an integer");
+}
+
 std::optional<double> parse_double(std::string_view text, std::string& why) {
-  text = without_plus(text);
-  double value{};
-  const auto result = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (result.ec == std::errc::result_out_of_range) {
-    why = "out of range";
-    return std::nullopt;
-  }
-  if (result.ec != std::errc{} || result.ptr != text.data() + text.size()) {
-    why = "not a number";
-    return std::nullopt;
-  }
-  return value;
+  return parse_whole<double>(text, why, "not a number");
 }
 
 // Parses one scalar for `field`; on failure returns nullopt and says why.

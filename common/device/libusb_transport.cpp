@@ -34,6 +34,16 @@ unsigned int timeout_ms(std::chrono::milliseconds timeout) {
   return static_cast<unsigned int>(ms);
 }
 
+// One interrupt or bulk transfer (as the endpoint's descriptor says), in either direction
+// (the endpoint address carries it); libusb's return code.
+int transfer(libusb_device_handle* handle, bool interrupt, unsigned char endpoint,
+             unsigned char* data, int length, int& transferred, std::chrono::milliseconds timeout) {
+  return interrupt ? libusb_interrupt_transfer(handle, endpoint, data, length, &transferred,
+                                               timeout_ms(timeout))
+                   : libusb_bulk_transfer(handle, endpoint, data, length, &transferred,
+                                          timeout_ms(timeout));
+}
+
 TransportStatus status_of(int rc) {
   switch (rc) {
     case LIBUSB_SUCCESS:
@@ -168,11 +178,8 @@ TransportStatus LibusbTransport::send(std::span<const std::uint8_t> packet,
   std::copy(packet.begin(), packet.end(), buffer.begin());
   int transferred = 0;
   const int length = static_cast<int>(packet.size());
-  const int rc = out_is_interrupt_
-                     ? libusb_interrupt_transfer(handle_, config_.endpoint_out, buffer.data(),
-                                                 length, &transferred, timeout_ms(timeout))
-                     : libusb_bulk_transfer(handle_, config_.endpoint_out, buffer.data(), length,
-                                            &transferred, timeout_ms(timeout));
+  const int rc = transfer(handle_, out_is_interrupt_, config_.endpoint_out, buffer.data(), length,
+                          transferred, timeout);
   if (rc != LIBUSB_SUCCESS) return status_of(rc);
   if (transferred != length) return {TransportCode::kError, "usb packet sent in part"};
   return {};
@@ -184,11 +191,8 @@ TransportStatus LibusbTransport::receive(std::span<std::uint8_t> buffer, std::si
   int transferred = 0;
   const int length =
       static_cast<int>(std::min<std::size_t>(buffer.size(), std::numeric_limits<int>::max()));
-  const int rc = in_is_interrupt_
-                     ? libusb_interrupt_transfer(handle_, config_.endpoint_in, buffer.data(),
-                                                 length, &transferred, timeout_ms(timeout))
-                     : libusb_bulk_transfer(handle_, config_.endpoint_in, buffer.data(), length,
-                                            &transferred, timeout_ms(timeout));
+  const int rc = transfer(handle_, in_is_interrupt_, config_.endpoint_in, buffer.data(), length,
+                          transferred, timeout);
   if (rc != LIBUSB_SUCCESS) return status_of(rc);
   received = static_cast<std::size_t>(transferred);
   return {};

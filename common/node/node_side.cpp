@@ -9,16 +9,30 @@
 namespace teleop::node {
 namespace {
 
-class MasterSide final : public NodeSide {
+// What both sides do alike with their own law (MasterLaw or SlaveLaw): its fault latch, its
+// reset, its retune with the side's own fixture (`kOwnFixture` of the active law); and the
+// position scaling alpha both need.
+template <typename Law, FixtureParams ActiveLaw::*kOwnFixture>
+class LawSide : public NodeSide {
  public:
-  explicit MasterSide(const NodeSettings& s)
-      : law_(s.law), alpha_(s.law.scaling.position), alignment_(s.alignment) {}
+  explicit LawSide(const NodeSettings& s) : law_(s.law), alpha_(s.law.scaling.position) {}
 
-  TELEOP_RT bool law_faulted() const noexcept override { return law_.faulted(); }
-  TELEOP_RT void reset_law(double position_m) noexcept override { law_.reset(position_m); }
-  TELEOP_RT void retune(const ActiveLaw& a) noexcept override {
-    law_.retune(a.gains, a.master_fixture);
+  TELEOP_RT bool law_faulted() const noexcept final { return law_.faulted(); }
+  TELEOP_RT void reset_law(double position_m) noexcept final { law_.reset(position_m); }
+  TELEOP_RT void retune(const ActiveLaw& a) noexcept final { law_.retune(a.gains, a.*kOwnFixture); }
+  TELEOP_RT const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept final {
+    return a.*kOwnFixture;
   }
+
+ protected:
+  Law law_;
+  double alpha_;
+};
+
+class MasterSide final : public LawSide<control::MasterLaw, &ActiveLaw::master_fixture> {
+ public:
+  explicit MasterSide(const NodeSettings& s) : LawSide(s), alignment_(s.alignment) {}
+
   TELEOP_RT double alignment_gap_m(double own_m, double peer_m) const noexcept override {
     return alpha_ * own_m - peer_m;
   }
@@ -60,9 +74,6 @@ class MasterSide final : public NodeSide {
     s.velocity_m_per_s = published.velocity_m_per_s;
     s.clutched = published.clutched;
   }
-  TELEOP_RT const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept override {
-    return a.master_fixture;
-  }
 
  private:
   // Toward the slave's position in master coordinates; the device is pushed along +x.
@@ -74,20 +85,13 @@ class MasterSide final : public NodeSide {
     return std::clamp(f, -alignment_.centring_max_force_N, alignment_.centring_max_force_N);
   }
 
-  control::MasterLaw law_;
-  double alpha_;
   AlignmentParams alignment_;
 };
 
-class SlaveSide final : public NodeSide {
+class SlaveSide final : public LawSide<control::SlaveLaw, &ActiveLaw::slave_fixture> {
  public:
-  explicit SlaveSide(const NodeSettings& s) : law_(s.law), alpha_(s.law.scaling.position) {}
+  explicit SlaveSide(const NodeSettings& s) : LawSide(s) {}
 
-  TELEOP_RT bool law_faulted() const noexcept override { return law_.faulted(); }
-  TELEOP_RT void reset_law(double position_m) noexcept override { law_.reset(position_m); }
-  TELEOP_RT void retune(const ActiveLaw& a) noexcept override {
-    law_.retune(a.gains, a.slave_fixture);
-  }
   TELEOP_RT double alignment_gap_m(double own_m, double peer_m) const noexcept override {
     return alpha_ * peer_m - own_m;
   }
@@ -124,13 +128,6 @@ class SlaveSide final : public NodeSide {
                          double measured_force_N) const noexcept override {
     s.force_N = measured_force_N;
   }
-  TELEOP_RT const FixtureParams& own_fixture(const ActiveLaw& a) const noexcept override {
-    return a.slave_fixture;
-  }
-
- private:
-  control::SlaveLaw law_;
-  double alpha_;
 };
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 namespace teleop::sim {
 
@@ -201,41 +202,30 @@ void Plant::rebuild() {
   }
 }
 
-void Plant::set_human_impedance(const HumanImpedance& human) {
-  const HumanImpedance old = params_.human;
-  params_.human = human;
+template <typename T>
+void Plant::change(T& field, T value) {
+  T old = std::move(field);
+  field = std::move(value);
   try {
     validate();
   } catch (...) {
-    params_.human = old;
+    field = std::move(old);
     throw;
   }
   rebuild();
 }
 
+void Plant::set_human_impedance(const HumanImpedance& human) { change(params_.human, human); }
+
 void Plant::set_period(std::chrono::nanoseconds period) {
-  const double old = period_s_;
-  period_s_ = std::chrono::duration<double>(period).count();
-  try {
-    validate();
-  } catch (...) {
-    period_s_ = old;
-    throw;
-  }
-  rebuild();
+  change(period_s_, std::chrono::duration<double>(period).count());
 }
 
 void Plant::set_method(SteppingMethod method, int substeps) {
-  const PlantParams old = params_;
-  params_.method = method;
-  params_.substeps = substeps;
-  try {
-    validate();
-  } catch (...) {
-    params_ = old;
-    throw;
-  }
-  rebuild();
+  PlantParams next = params_;
+  next.method = method;
+  next.substeps = substeps;
+  change(params_, std::move(next));
 }
 
 void Plant::reset(const PlantState& state) noexcept {

@@ -166,6 +166,10 @@ class Plant {
 
   void validate() const;
   void rebuild();
+  // `field` = `value` and rebuild() when the parameters stay valid; otherwise `field` is left
+  // as it was and validate()'s exception thrown.
+  template <typename T>
+  void change(T& field, T value);
   TELEOP_RT [[nodiscard]] bool tissue() const noexcept;
   TELEOP_RT [[nodiscard]] bool wall() const noexcept;
   TELEOP_RT [[nodiscard]] bool tissue_contact(double x, double v) const noexcept;

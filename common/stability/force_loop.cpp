@@ -69,16 +69,26 @@ void push_sum(Coefficients& c, std::initializer_list<double> terms) {
   c.error.push_back(8.0 * kEps * magnitude);
 }
 
+// The loop's parameters in the paper's symbols: mass M, damping B, gains K_p and K_i, the
+// environment's K_v and B_v, the sample period T.
+struct Symbols {
+  double m, b, kp, ki, kv, bv, t;
+};
+
+[[nodiscard]] Symbols symbols(const ForceLoopParams& p) {
+  return {p.mass_kg,
+          p.damping_Ns_per_m,
+          p.kp,
+          p.ki,
+          p.environment_stiffness_N_per_m,
+          p.environment_damping_Ns_per_m,
+          1.0 / p.sample_rate_hz};
+}
+
 // Expanded by hand from (M s^2 + B s)(2 + T s) [* s] + (K_p [s] + K_i)(K_v + B_v s)(2 - T s).
 // Does not validate; may contain non-finite values for absurd inputs.
 [[nodiscard]] Coefficients build(const ForceLoopParams& p) {
-  const double m = p.mass_kg;
-  const double b = p.damping_Ns_per_m;
-  const double kp = p.kp;
-  const double ki = p.ki;
-  const double kv = p.environment_stiffness_N_per_m;
-  const double bv = p.environment_damping_Ns_per_m;
-  const double t = 1.0 / p.sample_rate_hz;
+  const auto [m, b, kp, ki, kv, bv, t] = symbols(p);
   Coefficients c;
   if (ki > 0.0) {
     push_sum(c, {m * t});
@@ -140,11 +150,7 @@ struct Limit {
 // ---- P controller: the paper's closed forms -------------------------------------------------
 
 [[nodiscard]] Limit p_kv_limit(const ForceLoopParams& p) {
-  const double m = p.mass_kg;
-  const double b = p.damping_Ns_per_m;
-  const double kp = p.kp;
-  const double bv = p.environment_damping_Ns_per_m;
-  const double t = 1.0 / p.sample_rate_hz;
+  const auto [m, b, kp, ki, kv, bv, t] = symbols(p);
   const double a2 = 2.0 * m + b * t - kp * bv * t;  // eq. 14 is a2 > 0
   if (!(a2 > 0.0)) {
     return {std::nullopt, "B_v = " + str(bv) +
@@ -162,11 +168,7 @@ struct Limit {
 }
 
 [[nodiscard]] Limit p_bv_limit(const ForceLoopParams& p) {
-  const double m = p.mass_kg;
-  const double b = p.damping_Ns_per_m;
-  const double kp = p.kp;
-  const double kv = p.environment_stiffness_N_per_m;
-  const double t = 1.0 / p.sample_rate_hz;
+  const auto [m, b, kp, ki, kv, bv, t] = symbols(p);
   if (!(kv > 0.0)) {
     return {std::nullopt,
             "K_v = " + str(kv) + " N/m: a_0 = 2 K_p K_v is not positive, no B_v is stable"};

@@ -95,31 +95,38 @@ zmq::socket_t connected_socket(zmq::context_t& ctx, zmq::socket_type type,
   return socket;
 }
 
-}  // namespace
-
-zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
-                                   const LinkSecurity& security, IoLane lane) {
+// A publisher (PUB) around its own `options`: its only inbound traffic (handshakes and
+// subscriptions) capped at kMaxPublisherInboundBytes, and a full subscriber's queue drops for
+// that subscriber rather than blocking the sender (ZMQ_XPUB_NODROP off).
+template <typename Options>
+zmq::socket_t publisher_socket(zmq::context_t& ctx, std::string_view endpoint,
+                               const LinkSecurity& security, IoLane lane, const Options& options) {
   return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, lane,
-                      [](zmq::socket_t& socket) {
+                      [&options](zmq::socket_t& socket) {
                         socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
-                        socket.set(zmq::sockopt::conflate, true);
-                        // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM
-                        // without conflation would drop the newest; see the header).
+                        options(socket);
                         socket.set(zmq::sockopt::xpub_nodrop, false);
                       });
 }
 
+}  // namespace
+
+zmq::socket_t make_state_publisher(zmq::context_t& ctx, std::string_view endpoint,
+                                   const LinkSecurity& security, IoLane lane) {
+  return publisher_socket(ctx, endpoint, security, lane, [](zmq::socket_t& socket) {
+    socket.set(zmq::sockopt::conflate, true);
+    // No SNDHWM: a conflated pipe has one slot and ignores it (and a small HWM without
+    // conflation would drop the newest; see the header).
+  });
+}
+
 zmq::socket_t make_telemetry_publisher(zmq::context_t& ctx, std::string_view endpoint,
                                        const LinkSecurity& security, IoLane lane) {
-  return bound_socket(ctx, zmq::socket_type::pub, endpoint, security, lane,
-                      [](zmq::socket_t& socket) {
-                        socket.set(zmq::sockopt::maxmsgsize, kMaxPublisherInboundBytes);
-                        // No inbound limit: see kNoInboundHwm (the budget bounds what a subscriber
-                        // may send).
-                        socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
-                        socket.set(zmq::sockopt::sndhwm, 1000);
-                        socket.set(zmq::sockopt::xpub_nodrop, false);
-                      });
+  return publisher_socket(ctx, endpoint, security, lane, [](zmq::socket_t& socket) {
+    // No inbound limit: see kNoInboundHwm (the budget bounds what a subscriber may send).
+    socket.set(zmq::sockopt::rcvhwm, kNoInboundHwm);
+    socket.set(zmq::sockopt::sndhwm, 1000);
+  });
 }
 
 zmq::socket_t make_state_subscriber(zmq::context_t& ctx, std::string_view endpoint,

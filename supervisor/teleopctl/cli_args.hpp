@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "common/config/config_loader.hpp"
@@ -77,6 +78,28 @@ int run_guarded(const char* command, std::ostream& err, Body&& body) {
     err << "teleopctl " << command << ": " << e.what() << "\n";
   }
   return kExitError;
+}
+
+// A command that reads all its arguments first: --help or -h anywhere among `args` prints
+// `usage()` (exit 0); a UsageError from `parse(args)` prints the message and the usage (exit 2);
+// otherwise `run(parsed)` runs guarded as above.
+template <typename Parse, typename Run>
+int run_parsed(const char* command, const std::vector<std::string>& args, std::string (*usage)(),
+               std::ostream& out, std::ostream& err, Parse&& parse, Run&& run) {
+  std::invoke_result_t<Parse&, const std::vector<std::string>&> parsed;
+  try {
+    for (const std::string& arg : args) {
+      if (arg == "--help" || arg == "-h") {
+        out << usage();
+        return kExitOk;
+      }
+    }
+    parsed = parse(args);
+  } catch (const UsageError& e) {
+    err << "teleopctl " << command << ": " << e.what() << "\n" << usage();
+    return kExitUsage;
+  }
+  return run_guarded(command, err, [&] { return run(parsed); });
 }
 
 }  // namespace teleop::ctl

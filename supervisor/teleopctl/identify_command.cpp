@@ -680,20 +680,8 @@ int identify(const IdentifyArgs& a, std::ostream& out, std::ostream& err) {
 }  // namespace
 
 int run_identify(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  IdentifyArgs a;
-  try {
-    for (const std::string& arg : args) {
-      if (arg == "--help" || arg == "-h") {
-        out << identify_usage();
-        return kExitOk;
-      }
-    }
-    a = parse_identify_args(args);
-  } catch (const UsageError& e) {
-    err << "teleopctl identify: " << e.what() << "\n" << identify_usage();
-    return kExitUsage;
-  }
-  return run_guarded("identify", err, [&] { return identify(a, out, err); });
+  return run_parsed("identify", args, identify_usage, out, err, parse_identify_args,
+                    [&](const IdentifyArgs& a) { return identify(a, out, err); });
 }
 
 }  // namespace teleop::ctl

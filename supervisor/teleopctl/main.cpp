@@ -43,6 +43,18 @@ void usage(std::ostream& os) {
         "makes a command's output one JSON document with snake_case keys.\n";
 }
 
+// analyze and simulate: their arguments parsed, then run (the library keeps the two halves
+// apart, for the tests).
+int run_analyze_command(const std::vector<std::string>& args, std::ostream& out,
+                        std::ostream& err) {
+  return teleop::ctl::run_analyze(teleop::ctl::parse_analyze_args(args), out, err);
+}
+
+int run_simulate_command(const std::vector<std::string>& args, std::ostream& out,
+                         std::ostream& err) {
+  return teleop::ctl::run_simulate(teleop::ctl::parse_simulate_args(args), out, err);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -55,42 +67,16 @@ int main(int argc, char** argv) {
     std::cout << "teleopctl " << teleop::version() << "\n";
     return 0;
   }
-  if (args[0] == "analyze") {
-    const std::vector<std::string> rest(args.begin() + 1, args.end());
-    if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {
-      std::cout << teleop::ctl::analyze_usage();
-      return 0;
-    }
-    try {
-      const teleop::ctl::AnalyzeOptions options = teleop::ctl::parse_analyze_args(rest);
-      return teleop::ctl::run_analyze(options, std::cout, std::cerr);
-    } catch (const teleop::ctl::UsageError& e) {
-      std::cerr << "teleopctl analyze: " << e.what() << "\n" << teleop::ctl::analyze_usage();
-      return teleop::ctl::kExitUsage;
-    }
-  }
-  if (args[0] == "simulate") {
-    const std::vector<std::string> rest(args.begin() + 1, args.end());
-    if (!rest.empty() && (rest[0] == "--help" || rest[0] == "-h")) {
-      std::cout << teleop::ctl::simulate_usage();
-      return 0;
-    }
-    try {
-      return teleop::ctl::run_simulate(teleop::ctl::parse_simulate_args(rest), std::cout,
-                                       std::cerr);
-    } catch (const teleop::ctl::UsageError& e) {
-      std::cerr << "teleopctl simulate: " << e.what() << "\n" << teleop::ctl::simulate_usage();
-      return teleop::ctl::kExitUsage;
-    }
-  }
-  // Commands whose runner reads its own arguments: name, usage, runner.
+  // The commands: name, usage, runner.
   struct Simple {
     const char* name;
     std::string (*usage)();
     int (*run)(const std::vector<std::string>&, std::ostream&, std::ostream&);
   };
   for (const Simple& c :
-       {Simple{"launch", teleop::ctl::launch_usage, teleop::ctl::run_launch},
+       {Simple{"analyze", teleop::ctl::analyze_usage, run_analyze_command},
+        Simple{"simulate", teleop::ctl::simulate_usage, run_simulate_command},
+        Simple{"launch", teleop::ctl::launch_usage, teleop::ctl::run_launch},
         Simple{"node", teleop::ctl::node_usage, teleop::ctl::run_node_command},
         Simple{"keygen", teleop::ctl::keygen_usage, teleop::ctl::run_keygen},
         Simple{"set", teleop::ctl::set_usage, teleop::ctl::run_set},

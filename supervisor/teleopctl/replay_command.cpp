@@ -20,7 +20,6 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/config/resimulation_loader.hpp"
-#include "common/core/defaults.hpp"
 #include "common/record/mcap_reader.hpp"
 #include "common/scene/resimulate.hpp"
 #include "common/session/session_reader.hpp"
@@ -43,22 +42,15 @@ namespace topic = record::topic;
 
 enum class Action { kSummary, kPrint, kCsv, kRecover, kLive, kResimulate, kPlot };
 
-struct ReplayArgs {
-  std::string file{};
+// The file, --speed, the live replay's endpoints, --paused, --hold and --set as the live replay
+// takes them (the other actions read the file and --set from there too), and the rest.
+struct ReplayArgs : LiveReplayOptions {
   Action action{Action::kSummary};
   bool json{false};
   std::string channel{};                  // --print
   std::optional<std::string> out_path{};  // --csv --out
   std::string recover_path{};             // --recover
   std::string plot_path{};                // --plot
-  double speed{1.0};                      // --speed
-  std::string control{defaults::kReplayControlEndpoint};
-  std::optional<std::string> master_endpoint{};
-  std::optional<std::string> slave_endpoint{};
-  std::optional<std::string> report_endpoint{};
-  bool start_paused{false};
-  bool hold{false};
-  std::vector<std::string> overrides{};  // --set
 };
 
 void set_action(ReplayArgs& a, Action action, bool& chosen, const std::string& flag) {
@@ -121,12 +113,8 @@ void set_action(ReplayArgs& a, Action action, bool& chosen, const std::string& f
     } else if (arg == "--hold") {
       a.hold = true;
       live_only = true;
-    } else if (!arg.empty() && arg.front() == '-') {
-      throw UsageError(fmt::format("unknown option '{}'", arg));
-    } else if (a.file.empty()) {
-      a.file = arg;
     } else {
-      throw UsageError(fmt::format("unexpected argument '{}'", arg));
+      take_only_positional(arg, a.file, "-");
     }
   }
   if (a.file.empty()) throw UsageError("missing FILE");
@@ -518,20 +506,6 @@ int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::o
   return verdict == "uncertain" ? 4 : kExitOk;
 }
 
-[[nodiscard]] LiveReplayOptions live_options(const ReplayArgs& a) {
-  LiveReplayOptions o;
-  o.file = a.file;
-  o.speed = a.speed;
-  o.control = a.control;
-  o.master_endpoint = a.master_endpoint;
-  o.slave_endpoint = a.slave_endpoint;
-  o.report_endpoint = a.report_endpoint;
-  o.start_paused = a.start_paused;
-  o.hold = a.hold;
-  o.overrides = a.overrides;
-  return o;
-}
-
 int run(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
   if (a.action == Action::kRecover) return recover(a, out);
   const record::SessionReader session = record::SessionReader::open(a.file);
@@ -550,7 +524,7 @@ int run(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
     case Action::kCsv:
       return write_cycles_csv(session, a, out);
     case Action::kLive:
-      return replay_live(session, live_options(a), out, err);
+      return replay_live(session, a, out, err);
     case Action::kResimulate:
       return resimulate(session, a, out);
     case Action::kPlot:
@@ -615,20 +589,8 @@ std::string replay_usage() {
 }
 
 int run_replay(const std::vector<std::string>& args, std::ostream& out, std::ostream& err) {
-  ReplayArgs a;
-  try {
-    for (const std::string& arg : args) {
-      if (arg == "--help" || arg == "-h") {
-        out << replay_usage();
-        return kExitOk;
-      }
-    }
-    a = parse_replay_args(args);
-  } catch (const UsageError& e) {
-    err << "teleopctl replay: " << e.what() << "\n" << replay_usage();
-    return kExitUsage;
-  }
-  return run_guarded("replay", err, [&] { return run(a, out, err); });
+  return run_parsed("replay", args, replay_usage, out, err, parse_replay_args,
+                    [&](const ReplayArgs& a) { return run(a, out, err); });
 }
 
 }  // namespace teleop::ctl

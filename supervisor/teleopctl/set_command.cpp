@@ -30,6 +30,17 @@ std::optional<v1::SupervisorReply> supervisor_request(const std::string& endpoin
   return reply;
 }
 
+std::optional<v1::SupervisorReply> supervisor_request(const SupervisorClientFlags& sup,
+                                                      const v1::SupervisorRequest& request) {
+  return supervisor_request(sup.endpoint, request, sup.timeout_ms, sup.key, sup.server_key);
+}
+
+std::optional<v1::SupervisorReply> supervisor_status(const SupervisorClientFlags& sup) {
+  v1::SupervisorRequest request;
+  request.mutable_status();
+  return supervisor_request(sup, request);
+}
+
 bool SupervisorClientFlags::take(ArgCursor& cur) {
   const std::string& a = cur.arg();
   if (a == "--supervisor") {
@@ -141,10 +152,7 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
   return run_guarded("set", err, [&]() -> int {
     sup.use_local_launch_keys();
     // The gains in force, so that a change of one gain keeps the others.
-    v1::SupervisorRequest status;
-    status.mutable_status();
-    const auto now =
-        supervisor_request(sup.endpoint, status, sup.timeout_ms, sup.key, sup.server_key);
+    const auto now = supervisor_status(sup);
     if (!now) {
       err << "teleopctl set: no reply from the supervisor at " << sup.endpoint << "\n";
       return kExitNoReply;
@@ -152,8 +160,7 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
     v1::SupervisorRequest req;
     *req.mutable_change() =
         make_change_request(sets, now->status().report().gains(), dry_run, "teleopctl set");
-    const auto reply =
-        supervisor_request(sup.endpoint, req, sup.timeout_ms, sup.key, sup.server_key);
+    const auto reply = supervisor_request(sup, req);
     if (!reply) {
       err << "teleopctl set: no reply from the supervisor at " << sup.endpoint << "\n";
       return kExitNoReply;

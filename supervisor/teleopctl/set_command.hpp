@@ -44,5 +44,11 @@ struct SupervisorClientFlags {
 [[nodiscard]] std::optional<v1::SupervisorReply> supervisor_request(
     const std::string& endpoint, const v1::SupervisorRequest& request, int timeout_ms,
     const std::string& secret_key_file = "", const std::string& server_key = "");
+// The same to the supervisor `sup` names, with its keys and timeout.
+[[nodiscard]] std::optional<v1::SupervisorReply> supervisor_request(
+    const SupervisorClientFlags& sup, const v1::SupervisorRequest& request);
+// Its status: the reply to a status request (nullopt as above).
+[[nodiscard]] std::optional<v1::SupervisorReply> supervisor_status(
+    const SupervisorClientFlags& sup);
 
 }  // namespace teleop::ctl

@@ -491,12 +491,8 @@ SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {
       o.out_path = value("--out");
     } else if (a == "--plot") {
       o.plot_path = svg_plot_path(value("--plot"));
-    } else if (!a.empty() && a[0] == '-') {
-      throw UsageError(fmt::format("unknown option '{}'", a));
-    } else if (o.scene_path.empty()) {
-      o.scene_path = a;
     } else {
-      throw UsageError(fmt::format("unexpected argument '{}'", a));
+      take_only_positional(a, o.scene_path, "-");
     }
   }
   if (o.scene_path.empty()) throw UsageError("missing SCENE");

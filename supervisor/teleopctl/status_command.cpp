@@ -230,10 +230,7 @@ int run_status(const std::vector<std::string>& args, std::ostream& out, std::ost
   }
   return run_guarded("status", err, [&]() -> int {
     sup.use_local_launch_keys();
-    v1::SupervisorRequest req;
-    req.mutable_status();
-    const auto reply =
-        supervisor_request(sup.endpoint, req, sup.timeout_ms, sup.key, sup.server_key);
+    const auto reply = supervisor_status(sup);
     if (!reply) {
       err << "teleopctl status: no reply from the supervisor at " << sup.endpoint << " within "
           << sup.timeout_ms << " ms\n";
