@@ -440,9 +440,9 @@ void McapReader::read_summary(std::uint64_t summary_start, std::uint64_t summary
   });
 }
 
-McapReader McapReader::recover(const std::filesystem::path& path) {
+McapReader McapReader::recover(const std::filesystem::path& path, const ByteProgress& scanned) {
   McapReader r(path);
-  r.scan(true);
+  r.scan(true, scanned);
   return r;
 }
 
@@ -498,9 +498,10 @@ struct McapReader::Scan {
     return true;
   }
 
-  void run() {
+  void run(const ByteProgress& scanned) {
     std::size_t pos = mcap::kMagic.size();
     if (!header(pos)) return;
+    const std::uint64_t size = reader.file_.size();
     while (const std::optional<Frame> f = frame(pos)) {
       bool end_of_data = false;
       try {
@@ -516,6 +517,7 @@ struct McapReader::Scan {
       }
       pos = static_cast<std::size_t>(f->end());
       report.data_end = pos;
+      if (scanned) scanned(pos, size);
       if (end_of_data) {
         report.complete = true;
         return;
@@ -591,9 +593,9 @@ struct McapReader::Scan {
   }
 };
 
-void McapReader::scan(bool recovering) {
+void McapReader::scan(bool recovering, const ByteProgress& scanned) {
   Scan scan(*this, recovering);
-  scan.run();
+  scan.run(scanned);
   Statistics stats = std::move(scan.stats);
   stats.schema_count = static_cast<std::uint16_t>(schemas_.size());
   stats.channel_count = static_cast<std::uint32_t>(channels_.size());

@@ -86,6 +86,10 @@ enum class Order {
 };
 
 // What recover() kept.
+// How far a pass over a file is: `done_bytes` of `total_bytes` handled, called as the pass
+// goes (teleopctl's progress line on a terminal); empty: not called.
+using ByteProgress = std::function<void(std::uint64_t done_bytes, std::uint64_t total_bytes)>;
+
 struct RecoveryReport {
   std::uint64_t file_size{0};
   std::uint64_t chunks{0};    // complete chunks whose CRC checked
@@ -104,8 +108,10 @@ class McapReader {
   // recover()), summary CRC mismatch, malformed summary or records.
   [[nodiscard]] static McapReader open(const std::filesystem::path& path);
   // Never throws for damaged content (see recovery()); throws McapError if the file cannot
-  // be read or does not start with the MCAP magic.
-  [[nodiscard]] static McapReader recover(const std::filesystem::path& path);
+  // be read or does not start with the MCAP magic. `scanned`: the bytes read so far of the
+  // file's size, after each record.
+  [[nodiscard]] static McapReader recover(const std::filesystem::path& path,
+                                          const ByteProgress& scanned = {});
 
   McapReader(McapReader&&) noexcept;
   McapReader& operator=(McapReader&&) noexcept;
@@ -145,7 +151,7 @@ class McapReader {
   // MCAP magic.
   explicit McapReader(const std::filesystem::path& path);
   void read_summary(std::uint64_t summary_start, std::uint64_t summary_end);
-  void scan(bool recovering);
+  void scan(bool recovering, const ByteProgress& scanned = {});
 
   std::filesystem::path path_{};
   std::unique_ptr<Mapping> map_{};
@@ -170,6 +176,10 @@ class McapReader {
 // schemas and channels (renumbered 1, 2, ... in id order; ids stay when they were already
 // contiguous) and every message of the kept chunks with its times and sequence, in file order.
 // Returns the report on `in`; throws McapError / std::runtime_error naming the file on failure.
-RecoveryReport recover_file(const std::filesystem::path& in, const std::filesystem::path& out);
+// The two passes over `in` report their progress: `scanned` the scan of recover() (bytes of
+// the file's size), `written` the copy of the kept messages (the offset of the chunk being
+// copied, of the data_end the scan found).
+RecoveryReport recover_file(const std::filesystem::path& in, const std::filesystem::path& out,
+                            const ByteProgress& scanned = {}, const ByteProgress& written = {});
 
 }  // namespace teleop::record

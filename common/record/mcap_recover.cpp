@@ -8,8 +8,10 @@
 
 namespace teleop::record {
 
-RecoveryReport recover_file(const std::filesystem::path& in, const std::filesystem::path& out) {
-  const McapReader reader = McapReader::recover(in);
+RecoveryReport recover_file(const std::filesystem::path& in, const std::filesystem::path& out,
+                            const ByteProgress& scanned, const ByteProgress& written) {
+  const McapReader reader = McapReader::recover(in, scanned);
+  const std::uint64_t data_end = reader.recovery()->data_end;
   WriterOptions options{};
   options.profile = reader.header().profile;
   options.library = reader.header().library + "; recovered by teleop-record";
@@ -32,8 +34,10 @@ RecoveryReport recover_file(const std::filesystem::path& in, const std::filesyst
                       m.data)) {
       throw std::runtime_error(writer.error());
     }
+    if (written) written(m.record_offset, data_end);
   });
   if (!writer.close()) throw std::runtime_error(writer.error());
+  if (written) written(data_end, data_end);
   return *reader.recovery();
 }
 

@@ -45,7 +45,8 @@ double oscillation_threshold_m(const device::SimDeviceConfig& c) {
   return std::max(1e-5, 1.5 * count_m);
 }
 
-SlaveOutcome resimulate(const ResimulationSetup& setup, const std::vector<MasterCycle>& master) {
+SlaveOutcome resimulate(const ResimulationSetup& setup, const std::vector<MasterCycle>& master,
+                        const std::function<void(double fraction)>& progress) {
   const control::LawParams& law = setup.law;
   const double period_s = 1.0 / setup.sample_rate_hz;
   const std::chrono::nanoseconds period{std::llround(1e9 / setup.sample_rate_hz)};
@@ -85,7 +86,11 @@ SlaveOutcome resimulate(const ResimulationSetup& setup, const std::vector<Master
     (void)device.advance(period);
     const bool following = received.valid && !received.clutched;
     after.add(ss.position_m, following ? std::optional<double>(received.position_m) : std::nullopt);
+    if (progress && k % 1000 == 0) {
+      progress(static_cast<double>(k) / static_cast<double>(master.size()));
+    }
   }
+  if (progress) progress(1.0);
   SlaveOutcome outcome = after.finish(period_s, oscillation_threshold_m(slave_cfg));
   outcome.fault = fault;
   return outcome;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <vector>
 
@@ -72,8 +73,10 @@ struct MasterCycle {
 // The recorded master motion through the slave side of the law (lockstep.cpp's loop with the
 // master device replaced by the recording): one cycle per recorded master cycle, the master's
 // state reaching the slave round_trip_delay_samples + 1 cycles later. Throws std::runtime_error
-// ("slave device: ...") when the simulated slave does not start.
+// ("slave device: ...") when the simulated slave does not start. `progress`: the fraction of the
+// cycles done, every 1000 cycles and at the end (teleopctl's progress line); empty: not called.
 [[nodiscard]] SlaveOutcome resimulate(const ResimulationSetup& setup,
-                                      const std::vector<MasterCycle>& master);
+                                      const std::vector<MasterCycle>& master,
+                                      const std::function<void(double fraction)>& progress = {});
 
 }  // namespace teleop::scene

@@ -112,31 +112,53 @@ void SessionReader::visit(const SessionVisitor& v) const {
   });
 }
 
+void SessionReader::for_each_on(std::string_view topic,
+                                const std::function<void(const MessageView&)>& fn,
+                                const ByteProgress& read) const {
+  const std::uint64_t size = reader_.file_size();
+  std::uint64_t done = 0;
+  reader_.for_each_message(Order::kLogTime, [&](const MessageView& m) {
+    if (read && m.record_offset > done) {
+      done = m.record_offset;
+      read(done, size);
+    }
+    if (m.channel->topic == topic) fn(m);
+  });
+  if (read) read(size, size);
+}
+
 void SessionReader::for_each_telemetry(
-    bool master, const std::function<void(std::uint64_t, const v1::Telemetry&)>& fn) const {
-  for (const MessageView& m : messages_on(topic::telemetry(master))) {
-    fn(m.log_time_ns, decode<v1::Telemetry>(m));
-  }
+    bool master, const std::function<void(std::uint64_t, const v1::Telemetry&)>& fn,
+    const ByteProgress& read) const {
+  // Decoded as the pass reaches them: the file is read once, and `read` follows it.
+  for_each_on(
+      topic::telemetry(master),
+      [&](const MessageView& m) { fn(m.log_time_ns, decode<v1::Telemetry>(m)); }, read);
 }
 
-std::optional<v1::SystemConfig> SessionReader::config() const {
-  const std::vector<MessageView> m = messages_on(topic::kConfig);
-  if (m.empty()) return std::nullopt;
-  return decode<v1::SystemConfig>(m.back());
+std::optional<v1::SystemConfig> SessionReader::config(const ByteProgress& read) const {
+  std::optional<MessageView> newest;
+  for_each_on(
+      topic::kConfig, [&](const MessageView& m) { newest = m; }, read);
+  if (!newest) return std::nullopt;
+  return decode<v1::SystemConfig>(*newest);
 }
 
-std::vector<RecordedCycle> SessionReader::cycles(bool master) const {
+std::vector<RecordedCycle> SessionReader::cycles(bool master, const ByteProgress& read) const {
   const std::string_view topic = topic::telemetry(master);
   if (!has_topic(topic)) {
     throw std::runtime_error(path() + ": no channel '" + std::string(topic) +
                              "' (channels: " + channel_list() + ")");
   }
   std::vector<RecordedCycle> cycles;
-  for_each_telemetry(master, [&](std::uint64_t, const v1::Telemetry& t) {
-    for (const v1::CycleRecord& c : t.cycles()) {
-      cycles.push_back({t.session_id(), telemetry::from_proto(c)});
-    }
-  });
+  for_each_telemetry(
+      master,
+      [&](std::uint64_t, const v1::Telemetry& t) {
+        for (const v1::CycleRecord& c : t.cycles()) {
+          cycles.push_back({t.session_id(), telemetry::from_proto(c)});
+        }
+      },
+      read);
   return cycles;
 }
 
@@ -157,8 +179,9 @@ std::vector<Stamped<v1::SupervisorStatus>> SessionReader::statuses() const {
 }
 
 std::optional<config::LoadedConfig> recorded_config(const SessionReader& session,
-                                                    const std::vector<std::string>& overrides) {
-  const std::optional<v1::SystemConfig> recorded = session.config();
+                                                    const std::vector<std::string>& overrides,
+                                                    const ByteProgress& read) {
+  const std::optional<v1::SystemConfig> recorded = session.config(read);
   if (!recorded) {
     if (!overrides.empty()) {
       throw std::runtime_error(session.path() + ": no /config channel to apply --set to");

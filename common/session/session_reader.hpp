@@ -88,15 +88,20 @@ class SessionReader {
   // One pass over every message (see SessionVisitor); throws as decode() does.
   void visit(const SessionVisitor& visitor) const;
   // Every Telemetry message one node published, in log-time order (none without the channel).
+  // `read`: how far the pass is through the file (the offset of the chunk being read, of the
+  // file's size; the size at the end).
   void for_each_telemetry(bool master,
-                          const std::function<void(std::uint64_t, const v1::Telemetry&)>& fn) const;
+                          const std::function<void(std::uint64_t, const v1::Telemetry&)>& fn,
+                          const ByteProgress& read = {}) const;
 
-  // The configuration (the newest message on /config); nullopt without the channel.
-  [[nodiscard]] std::optional<v1::SystemConfig> config() const;
+  // The configuration (the newest message on /config); nullopt without the channel. `read` as
+  // for for_each_telemetry (a pass over the whole file).
+  [[nodiscard]] std::optional<v1::SystemConfig> config(const ByteProgress& read = {}) const;
   // Every cycle one node recorded (the CycleRecords of its telemetry, in log-time order; flight
   // records, which repeat cycles, left out). Throws naming the file when there is no such
-  // channel ("FILE: no channel '/slave/telemetry' (channels: ...)").
-  [[nodiscard]] std::vector<RecordedCycle> cycles(bool master) const;
+  // channel ("FILE: no channel '/slave/telemetry' (channels: ...)"). `read` as for
+  // for_each_telemetry.
+  [[nodiscard]] std::vector<RecordedCycle> cycles(bool master, const ByteProgress& read = {}) const;
   [[nodiscard]] std::vector<Stamped<v1::StabilityReport>> reports() const;
   [[nodiscard]] std::vector<Stamped<v1::Alarm>> alarms() const;
   [[nodiscard]] std::vector<Stamped<v1::ParameterChangeRecord>> parameter_changes() const;
@@ -104,6 +109,9 @@ class SessionReader {
 
  private:
   explicit SessionReader(McapReader reader) : reader_(std::move(reader)) {}
+  // Every message of `topic` in log-time order to `fn`, `read` following the pass.
+  void for_each_on(std::string_view topic, const std::function<void(const MessageView&)>& fn,
+                   const ByteProgress& read) const;
   void decode_into(const MessageView& m, google::protobuf::Message& out) const;
 
   McapReader reader_;
@@ -111,9 +119,10 @@ class SessionReader {
 
 // The recorded configuration with `overrides` (`--set PATH=VALUE`) applied and validated
 // (config_loader.hpp; messages name "FILE (/config)"); nullopt when the session has no /config,
-// which throws instead when there are overrides to apply.
+// which throws instead when there are overrides to apply. `read` as for SessionReader::config.
 [[nodiscard]] std::optional<config::LoadedConfig> recorded_config(
-    const SessionReader& session, const std::vector<std::string>& overrides = {});
+    const SessionReader& session, const std::vector<std::string>& overrides = {},
+    const ByteProgress& read = {});
 
 // The recorder's drop count a supervisor message carries (the uint64 field recording_drops of
 // its type, found by reflection); nullopt when its type has none or it does not decode.

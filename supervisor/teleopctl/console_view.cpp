@@ -13,9 +13,11 @@ namespace {
 // them free, so that a prediction and its verdict are on screen whole.
 constexpr int kMinMessageRows = 3;
 constexpr int kMaxMessageRows = 6;
-// An alarm takes a second row (its evidence, its action) while the rows allow it.
-constexpr int kAlarmRows = 2;
 constexpr std::size_t kAlarmIndent = 9;  // continuation rows start under the message
+// An alarm whose rows do not all fit shows them a page at a time, each for this long, with
+// " [p/N]" at the end of the page's first row.
+constexpr double kAlarmPageSeconds = 3.0;
+constexpr int kPageMarkWidth = 6;  // " [p/N]" for N up to 9
 
 std::string fit(std::string s, int cols) {
   if (cols <= 0) return {};
@@ -511,17 +513,48 @@ std::vector<std::string> message_area(const ConsoleView& view, int cols) {
   return area;
 }
 
-// Alarms, newest first, each on up to kAlarmRows rows while every later one still gets one.
+// One alarm on `take` rows: whole when it fits; else word-wrapped narrower (room for the
+// mark) and shown a page of `take` rows at a time, the page turning every kAlarmPageSeconds
+// of the wall clock (the first page when the clock is unknown), so that the whole text is read
+// in turn in the same rows.
+void add_alarm_rows(std::vector<std::string>& lines, const std::string& text, int take,
+                    const ConsoleView& view, int cols) {
+  const std::vector<std::string> whole = wrap(text, cols, kAlarmIndent);
+  if (static_cast<int>(whole.size()) <= take || cols < 2 * kPageMarkWidth) {
+    for (int r = 0; r < std::min(take, static_cast<int>(whole.size())); ++r) {
+      lines.push_back(whole[static_cast<std::size_t>(r)]);
+    }
+    return;
+  }
+  const std::vector<std::string> rows = wrap(text, cols - kPageMarkWidth, kAlarmIndent);
+  const auto per_page = static_cast<std::size_t>(take);
+  const std::size_t pages = std::min<std::size_t>(9, (rows.size() + per_page - 1) / per_page);
+  const std::size_t page =
+      view.clock_s < 0.0
+          ? 0
+          : static_cast<std::size_t>(std::floor(view.clock_s / kAlarmPageSeconds)) % pages;
+  for (std::size_t r = 0; r < per_page; ++r) {
+    const std::size_t at = page * per_page + r;
+    std::string row = at < rows.size() ? rows[at] : std::string();
+    if (r == 0) {
+      row = pad(row, static_cast<std::size_t>(cols - kPageMarkWidth)) +
+            fmt::format(" [{}/{}]", page + 1, pages);
+    }
+    lines.push_back(row);
+  }
+}
+
+// Alarms, newest first, each on as many rows as it needs while every later one still gets
+// one; one that still does not fit pages through its rows (add_alarm_rows).
 void add_alarms(std::vector<std::string>& lines, const ConsoleView& view,
                 const std::vector<AlarmEntry>& entries, std::int64_t now_ns, int room, int cols) {
   const int alarms = static_cast<int>(entries.size());
   for (int i = 0; i < alarms && room > 0; ++i) {
-    const std::vector<std::string> rows_of =
-        wrap(alarm_row(entries[static_cast<std::size_t>(i)], view, now_ns), cols, kAlarmIndent);
+    const std::string text = alarm_row(entries[static_cast<std::size_t>(i)], view, now_ns);
+    const int needs = static_cast<int>(wrap(text, cols, kAlarmIndent).size());
     const int later = std::min(alarms - i - 1, room - 1);
-    const int take =
-        std::clamp(static_cast<int>(rows_of.size()), 1, std::min(kAlarmRows, room - later));
-    for (int r = 0; r < take; ++r) lines.push_back(rows_of[static_cast<std::size_t>(r)]);
+    const int take = std::clamp(needs, 1, room - later);
+    add_alarm_rows(lines, text, take, view, cols);
     room -= take;
   }
 }

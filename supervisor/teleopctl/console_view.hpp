@@ -57,8 +57,10 @@ class AlarmHistory {
 //   below it), the link, the plots (4 rows; one more per 4 rows the terminal has beyond 24, up
 //   to 8), stability, monitors, recorder, the alarm count;
 // - the alarms, newest first: warnings of one kind, side and message grouped into one entry
-//   ("x37", when the newest was), every other alarm on its own; every row the
-//   terminal has beyond these goes to the alarms;
+//   ("x37", when the newest was), every other alarm on its own, each word-wrapped onto the
+//   rows it needs while every later one still gets one (one that needs more shows its rows a
+//   page at a time, turning every 3 s of `clock_s`, " [p/N]" ending the page's first row);
+//   every row the terminal has beyond these goes to the alarms;
 // - at least 3 message rows, then the key line.
 // The screen, `rows` lines of at most `cols` characters.
 [[nodiscard]] std::vector<std::string> render_console(const ConsoleView& view, int rows, int cols);

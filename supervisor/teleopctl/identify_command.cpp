@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <functional>
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -15,6 +17,7 @@
 
 #include "common/session/session_reader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/node_state.pb.h"
 
@@ -51,9 +54,15 @@ struct Csv {
   return line;
 }
 
-[[nodiscard]] Csv read_csv(const std::string& path) {
+// How far a file is read: bytes done of its size (empty: not called).
+using BytesRead = std::function<void(std::uint64_t done, std::uint64_t total)>;
+
+[[nodiscard]] Csv read_csv(const std::string& path, const BytesRead& read = {}) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(fmt::format("cannot read '{}'", path));
+  std::error_code ec_size;
+  const std::uint64_t size = std::filesystem::file_size(path, ec_size);
+  std::uint64_t done = 0;
   Csv csv;
   std::string line;
   if (!std::getline(in, line)) throw std::runtime_error(fmt::format("{}: empty file", path));
@@ -62,6 +71,8 @@ struct Csv {
   std::size_t line_no = 1;
   while (std::getline(in, line)) {
     ++line_no;
+    done += line.size() + 1;
+    if (read && !ec_size && line_no % 1000 == 0) read(done, size);
     line = trim_cr(line);
     if (line.empty()) continue;
     const std::vector<std::string> cells = split(line, ',');
@@ -84,6 +95,7 @@ struct Csv {
   if (csv.columns.empty() || csv.columns.front().empty()) {
     throw std::runtime_error(fmt::format("{}: no data rows", path));
   }
+  if (read) read(1, 1);
   return csv;
 }
 
@@ -228,9 +240,10 @@ struct McapRuns {
 };
 
 [[nodiscard]] McapRuns read_runs_mcap(const std::string& path, bool master,
-                                      const stability::IdentifyOptions& options) {
+                                      const stability::IdentifyOptions& options,
+                                      const BytesRead& read) {
   const std::vector<record::RecordedCycle> cycles =
-      record::SessionReader::open(path).cycles(master);
+      record::SessionReader::open(path).cycles(master, read);
   if (cycles.size() < 2) {
     throw std::runtime_error(fmt::format("{}: {} cycles of the {} recorded, too few to identify",
                                          path, cycles.size(), master ? "master" : "slave"));
@@ -311,8 +324,10 @@ struct McapRuns {
 
 }  // namespace
 
-stability::Series read_series_csv(const std::string& path, const CsvColumns& columns) {
-  const Csv csv = read_csv(path);
+stability::Series read_series_csv(
+    const std::string& path, const CsvColumns& columns,
+    const std::function<void(std::uint64_t done, std::uint64_t total)>& read) {
+  const Csv csv = read_csv(path, read);
   stability::Series s;
   s.position_m = column(csv, path, columns.position, "position");
   s.force_N = evaluate(csv, path, columns.force, "force");
@@ -394,9 +409,15 @@ struct Runs {
   std::size_t short_runs{0};
 };
 
-[[nodiscard]] Runs read_runs(const IdentifyArgs& a) {
+// Reading the files and the fit in the time they take (measured on a 300 s session, 300 000
+// samples: reading a node's cycles 0.35 s, the fit 0.06 s).
+constexpr double kIdentifyReadFile = 0.35;
+constexpr double kIdentifyFit = 0.06;
+
+[[nodiscard]] Runs read_runs(const IdentifyArgs& a, ProgressParts& parts) {
   Runs out;
   for (const std::string& file : a.files) {
+    const auto read = parts.bytes(kIdentifyReadFile);
     if (record::is_mcap_file(file)) {
       if (a.custom_columns || a.columns.rate_hz > 0.0 || a.columns.time != "time_s") {
         throw std::runtime_error(fmt::format(
@@ -404,14 +425,14 @@ struct Runs {
             "for CSV files",
             file));
       }
-      McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options);
+      McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options, read);
       for (std::size_t i = 0; i < m.runs.size(); ++i) {
         out.runs.push_back(std::move(m.runs[i]));
         out.names.push_back(m.names[i]);
       }
       out.short_runs += m.short_runs;
     } else {
-      out.runs.push_back(read_series_csv(file, a.columns));
+      out.runs.push_back(read_series_csv(file, a.columns, read));
       out.names.push_back(file);
     }
   }
@@ -643,9 +664,27 @@ void write_fit_plot(const std::string& path, const Fitted& f) {
   write_svg(path, chart);
 }
 
+// The runs read and fitted under a progress line, erased before anything is printed.
+struct Read {
+  Runs runs;
+  stability::IdentifyResult result;
+};
+
+[[nodiscard]] Read read_and_fit(const IdentifyArgs& a, std::ostream& err) {
+  ProgressLine progress(err, "identify", !a.json && stderr_is_terminal());
+  ProgressParts parts(progress,
+                      static_cast<double>(a.files.size()) * kIdentifyReadFile + kIdentifyFit);
+  Runs runs = read_runs(a, parts);
+  // The fit reports nothing as it goes: the line shows where it starts.
+  if (const auto fitting = parts.fraction(kIdentifyFit)) fitting(0.0);
+  stability::IdentifyResult r = fit(runs, a.options);
+  return {std::move(runs), std::move(r)};
+}
+
 int identify(const IdentifyArgs& a, std::ostream& out, std::ostream& err) {
-  const Runs runs = read_runs(a);
-  const stability::IdentifyResult r = fit(runs, a.options);
+  const Read read = read_and_fit(a, err);
+  const Runs& runs = read.runs;
+  const stability::IdentifyResult& r = read.result;
   Fitted f{a, runs, r};
   f.side = a.custom_columns ? a.device : std::optional<std::string>(a.device.value_or("master"));
   f.excitation = excitation(runs);

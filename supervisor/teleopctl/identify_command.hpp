@@ -7,6 +7,8 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
+#include <functional>
 #include <iosfwd>
 #include <string>
 #include <vector>
@@ -29,7 +31,8 @@ int run_identify(const std::vector<std::string>& args, std::ostream& out, std::o
 // means none). position_lag_rows: the position column was sensed that many rows before the
 // instant the forces of its row refer to, so the position of row k + lag goes with the forces
 // of row k (the last rows are dropped). rate_hz > 0 uses that rate instead of the time column.
-// Throws std::runtime_error naming the file, line and column.
+// Throws std::runtime_error naming the file, line and column. `read`: the bytes read of the
+// file's size, every 1000 rows and at the end (empty: not called).
 struct CsvColumns {
   std::string time{"time_s"};
   std::string position{};
@@ -38,6 +41,8 @@ struct CsvColumns {
   std::size_t position_lag_rows{0};
   double rate_hz{0.0};
 };
-[[nodiscard]] stability::Series read_series_csv(const std::string& path, const CsvColumns& columns);
+[[nodiscard]] stability::Series read_series_csv(
+    const std::string& path, const CsvColumns& columns,
+    const std::function<void(std::uint64_t done, std::uint64_t total)>& read = {});
 
 }  // namespace teleop::ctl

@@ -33,4 +33,35 @@ void ProgressLine::update(std::size_t done, std::size_t total) {
   update(static_cast<double>(done) / static_cast<double>(total));
 }
 
+std::function<void(double)> ProgressLine::part(double begin, double end) {
+  if (!enabled_) return {};
+  return [this, begin, end](double f) { update(begin + (end - begin) * std::clamp(f, 0.0, 1.0)); };
+}
+
+std::function<void(std::uint64_t, std::uint64_t)> ProgressLine::part_bytes(double begin,
+                                                                           double end) {
+  if (!enabled_) return {};
+  return [this, begin, end](std::uint64_t done, std::uint64_t total) {
+    if (total == 0) return;
+    update(begin +
+           (end - begin) * std::min(1.0, static_cast<double>(done) / static_cast<double>(total)));
+  };
+}
+
+std::pair<double, double> ProgressParts::next(double time) {
+  const double begin = total_ > 0.0 ? at_ / total_ : 0.0;
+  at_ += time;
+  return {begin, total_ > 0.0 ? std::min(1.0, at_ / total_) : 1.0};
+}
+
+std::function<void(std::uint64_t, std::uint64_t)> ProgressParts::bytes(double time) {
+  const auto [begin, end] = next(time);
+  return line_.part_bytes(begin, end);
+}
+
+std::function<void(double)> ProgressParts::fraction(double time) {
+  const auto [begin, end] = next(time);
+  return line_.part(begin, end);
+}
+
 }  // namespace teleop::ctl

@@ -24,6 +24,7 @@
 #include "common/scene/resimulate.hpp"
 #include "common/session/session_reader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/replay_live.hpp"
 #include "supervisor/teleopctl/replay_summary.hpp"
 #include "supervisor/teleopctl/replay_supervision.hpp"
@@ -316,7 +317,14 @@ int write_session_plot(const record::SessionReader& session, const ReplayArgs& a
 
 // --- --recover -----------------------------------------------------------------------------
 
-int recover(const ReplayArgs& a, std::ostream& out) {
+// The three passes of --recover in the time they take (measured on a 94 MB session cut short):
+// the scan of the damaged file 0.16 s, the copy of what it keeps 0.30 s, the count of the
+// written file 0.14 s.
+constexpr double kRecoverScan = 0.16;
+constexpr double kRecoverCopy = 0.30;
+constexpr double kRecoverCount = 0.14;
+
+int recover(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
   if (!std::filesystem::exists(a.file)) {
     throw std::runtime_error(fmt::format("{}: no such file", a.file));
   }
@@ -325,12 +333,26 @@ int recover(const ReplayArgs& a, std::ostream& out) {
     throw std::runtime_error(
         fmt::format("--recover {}: the output must not be the damaged file itself", a.file));
   }
-  const record::RecoveryReport r = record::recover_file(a.file, a.recover_path);
-  const record::McapReader written = record::McapReader::open(a.recover_path);
   std::map<std::string, std::uint64_t> per_topic;
-  for (const auto& [id, ch] : written.channels()) per_topic[ch.topic] = 0;
-  written.for_each_message(record::Order::kFile,
-                           [&](const record::MessageView& m) { ++per_topic[m.channel->topic]; });
+  std::optional<record::McapReader> reopened;
+  record::RecoveryReport r;
+  {
+    // Erased (leaving scope) before anything is printed.
+    ProgressLine progress(err, "replay --recover", !a.json && stderr_is_terminal());
+    ProgressParts parts(progress, kRecoverScan + kRecoverCopy + kRecoverCount);
+    const auto scanned = parts.bytes(kRecoverScan);
+    const auto copied = parts.bytes(kRecoverCopy);
+    r = record::recover_file(a.file, a.recover_path, scanned, copied);
+    reopened.emplace(record::McapReader::open(a.recover_path));
+    for (const auto& [id, ch] : reopened->channels()) per_topic[ch.topic] = 0;
+    const auto counted = parts.bytes(kRecoverCount);
+    const std::uint64_t size = reopened->file_size();
+    reopened->for_each_message(record::Order::kFile, [&](const record::MessageView& m) {
+      ++per_topic[m.channel->topic];
+      if (counted) counted(m.record_offset, size);
+    });
+  }
+  const record::McapReader& written = *reopened;
   std::optional<std::pair<std::uint64_t, std::uint64_t>> span;  // log times kept
   if (written.statistics() && written.statistics()->message_count > 0) {
     span.emplace(written.statistics()->message_start_time, written.statistics()->message_end_time);
@@ -453,17 +475,34 @@ void print_resimulation(const json& j, const ReplayArgs& a, const scene::SlaveOu
   if (resimulated.fault) out << "  the resimulated slave law latched a fault\n";
 }
 
-int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::ostream& out) {
-  const std::optional<config::LoadedConfig> recorded = record::recorded_config(session);
+// The parts of --resimulate's progress line, in the time they take (measured on a 104 MB
+// session of 300 s: a pass over the file for the configuration 0.12 s, one reading a node's
+// cycles 0.30 s, the resimulation of its 300 000 cycles and the analyses 0.09 s).
+constexpr double kConfigPass = 0.12;
+constexpr double kCyclesPass = 0.30;
+constexpr double kResimulation = 0.09;
+
+int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::ostream& out,
+               std::ostream& err) {
+  // Erased before anything is printed (the output below comes after the analyses).
+  std::optional<ProgressLine> progress;
+  progress.emplace(err, "replay --resimulate", !a.json && stderr_is_terminal());
+  const bool overrides = !a.overrides.empty();
+  ProgressParts parts(*progress,
+                      (overrides ? 2.0 : 1.0) * kConfigPass + 2.0 * kCyclesPass + kResimulation);
+  const std::optional<config::LoadedConfig> recorded =
+      record::recorded_config(session, {}, parts.bytes(kConfigPass));
   if (!recorded) {
     throw std::runtime_error(
         fmt::format("{}: no /config channel: --resimulate needs the "
                     "recorded configuration (channels: {})",
                     a.file, session.channel_list()));
   }
-  const config::LoadedConfig cfg = *record::recorded_config(session, a.overrides);
-  const std::vector<record::RecordedCycle> master = session.cycles(true);
-  const std::vector<record::RecordedCycle> slave = session.cycles(false);
+  const config::LoadedConfig cfg =
+      overrides ? *record::recorded_config(session, a.overrides, parts.bytes(kConfigPass))
+                : *recorded;
+  const std::vector<record::RecordedCycle> master = session.cycles(true, parts.bytes(kCyclesPass));
+  const std::vector<record::RecordedCycle> slave = session.cycles(false, parts.bytes(kCyclesPass));
   if (master.empty()) {
     throw std::runtime_error(fmt::format("{}: no master cycles to replay ({} is empty or missing)",
                                          a.file, topic::kMasterTelemetry));
@@ -480,7 +519,8 @@ int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::o
   }
   const scene::SlaveOutcome before = recorded_outcome(slave, params_before, setup->recorded_slave);
   // What would have happened: the recorded master motion through the slave side of the law.
-  const scene::SlaveOutcome after = scene::resimulate(setup->setup, master_motion(master));
+  const scene::SlaveOutcome after =
+      scene::resimulate(setup->setup, master_motion(master), parts.fraction(kResimulation));
 
   const double period_s = 1.0 / params.sample_rate_hz;
   json j = {{"file", a.file},
@@ -492,6 +532,7 @@ int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::o
              {{"analysis", guard_analysis_json(params_before)}, {"outcome", outcome_json(before)}}},
             {"resimulated",
              {{"analysis", guard_analysis_json(params)}, {"outcome", outcome_json(after)}}}};
+  progress.reset();
   if (a.json) {
     out << j.dump(2) << "\n";
   } else {
@@ -507,7 +548,7 @@ int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::o
 }
 
 int run(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
-  if (a.action == Action::kRecover) return recover(a, out);
+  if (a.action == Action::kRecover) return recover(a, out, err);
   const record::SessionReader session = record::SessionReader::open(a.file);
   switch (a.action) {
     case Action::kSummary: {
@@ -526,7 +567,7 @@ int run(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
     case Action::kLive:
       return replay_live(session, a, out, err);
     case Action::kResimulate:
-      return resimulate(session, a, out);
+      return resimulate(session, a, out, err);
     case Action::kPlot:
       return write_session_plot(session, a, out);
     case Action::kRecover:

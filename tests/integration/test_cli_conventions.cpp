@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -197,6 +198,107 @@ TEST(CliProgress, OnATerminalOnlyAndNeverInJson) {
   const std::string sweep =
       on_terminal("analyze " + kLive + " --max-stiffness=slave --sweep=gains.kds=1:3:1");
   EXPECT_NE(sweep.find("analyze --max-stiffness: "), std::string::npos) << sweep;
+}
+
+// What a command drew on a terminal: the percentages its progress line `label` showed, in
+// order ("\r\033[K<label>:  37%" each), whether the line was then erased ("\r\033[K") and what
+// came after it.
+struct ProgressDrawn {
+  std::vector<int> percents{};
+  bool erased{false};
+  std::string after{};
+};
+
+ProgressDrawn progress_drawn(const std::string& text, const std::string& label) {
+  const std::string draw = "\r\033[K" + label + ": ";
+  const std::string erase = "\r\033[K";
+  ProgressDrawn d;
+  std::size_t end = std::string::npos;
+  for (std::size_t at = text.find(draw); at != std::string::npos; at = text.find(draw, end)) {
+    at += draw.size();
+    const std::size_t percent = text.find('%', at);
+    if (percent == std::string::npos || percent > at + 3) break;
+    d.percents.push_back(std::stoi(text.substr(at, percent - at)));
+    end = percent + 1;
+  }
+  if (end == std::string::npos) return d;
+  d.erased = text.compare(end, erase.size(), erase) == 0;
+  d.after = text.substr(d.erased ? end + erase.size() : end);
+  return d;
+}
+
+// On a terminal, the progress line of `label` is drawn, goes only forward within 0..100 %, and
+// is erased before the result, which starts with `result`; with --json on a terminal and
+// through a pipe there is none, and --json's output parses.
+void expect_progress_on_a_terminal_only(const std::string& args, const std::string& label,
+                                        const std::string& result) {
+  const std::string text = on_terminal(args);
+  const ProgressDrawn d = progress_drawn(text, label);
+  ASSERT_FALSE(d.percents.empty()) << args << "\n" << text;
+  EXPECT_TRUE(std::is_sorted(d.percents.begin(), d.percents.end())) << args << "\n" << text;
+  EXPECT_GE(d.percents.front(), 0) << args;
+  EXPECT_LE(d.percents.back(), 100) << args;
+  EXPECT_TRUE(d.erased) << args << "\n" << text;
+  EXPECT_EQ(d.after.rfind(result, 0), 0U) << args << "\n" << text;
+  EXPECT_EQ(d.after.find(label + ": "), std::string::npos) << args << "\n" << text;
+
+  const std::string json_text = on_terminal(args + " --json");
+  EXPECT_EQ(json_text.find(label + ": "), std::string::npos) << args << " --json\n" << json_text;
+  EXPECT_EQ(json_text.find('\033'), std::string::npos) << args << " --json\n" << json_text;
+  EXPECT_TRUE(nlohmann::json::accept(json_text)) << args << " --json\n" << json_text;
+  // Through a pipe (stderr with stdout): the result only.
+  const CliResult piped = teleopctl(args);
+  EXPECT_EQ(piped.out.find(label + ": "), std::string::npos) << args << "\n" << piped.out;
+  EXPECT_EQ(piped.out.find('\033'), std::string::npos) << args << "\n" << piped.out;
+  EXPECT_EQ(piped.out.rfind(result, 0), 0U) << args << "\n" << piped.out;
+  const CliResult piped_json = teleopctl(args + " --json", false);
+  EXPECT_TRUE(nlohmann::json::accept(piped_json.out)) << args << " --json\n" << piped_json.out;
+}
+
+// A 30 s session of the identification scene (10 MB: the passes over it take a noticeable
+// part of a second), written once for the tests below, and a copy cut short at two thirds
+// (a crash mid-session).
+class CliProgressOnSessions : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("teleop-cli-progress-" + std::to_string(::getpid()));
+    std::filesystem::create_directories(dir_);
+    const std::string scene = kSource + "/examples/scenes/identify_excitation.textproto";
+    for (const char* out : {"session.mcap", "session.csv"}) {
+      const CliResult r = teleopctl("simulate " + scene + " --duration=30 --out=" + file(out));
+      ASSERT_EQ(r.exit_code, 0) << r.out;
+    }
+    std::filesystem::copy_file(file("session.mcap"), file("cut.mcap"));
+    std::filesystem::resize_file(file("cut.mcap"),
+                                 std::filesystem::file_size(file("session.mcap")) * 2 / 3);
+  }
+  static void TearDownTestSuite() { std::filesystem::remove_all(dir_); }
+  static std::string file(const std::string& name) { return (dir_ / name).string(); }
+
+ private:
+  static inline std::filesystem::path dir_{};
+};
+
+TEST_F(CliProgressOnSessions, ReplayRecoverShowsItsProgressOnATerminalOnly) {
+  const std::string out = file("recovered.mcap");
+  expect_progress_on_a_terminal_only("replay " + file("cut.mcap") + " --recover " + out,
+                                     "replay --recover", file("cut.mcap") + ": kept ");
+  // What it wrote (each run the same) is a whole session.
+  EXPECT_EQ(teleopctl("replay " + out, false).exit_code, 0);
+}
+
+TEST_F(CliProgressOnSessions, IdentifyShowsItsProgressOnATerminalOnly) {
+  expect_progress_on_a_terminal_only("identify " + file("session.mcap"), "identify",
+                                     "identified master device: ");
+  expect_progress_on_a_terminal_only("identify " + file("session.csv") + " --device slave",
+                                     "identify", "identified slave device: ");
+}
+
+TEST_F(CliProgressOnSessions, ReplayResimulateShowsItsProgressOnATerminalOnly) {
+  expect_progress_on_a_terminal_only("replay " + file("session.mcap") + " --resimulate",
+                                     "replay --resimulate",
+                                     file("session.mcap") + ": the recorded master motion");
 }
 
 // The completion script as bash runs it: COMP_WORDS/COMP_CWORD in, COMPREPLY out.

@@ -6,9 +6,12 @@
 // the nodes' own telemetry and against `teleopctl analyze`, an independent path.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <regex>
 
@@ -161,8 +164,9 @@ bool linked(const v1::Telemetry& t) { return t.link().accepted() > 0; }
 // The master, the slave and the supervisor from one file, the nodes' telemetry tapped.
 class LiveSystem {
  public:
-  LiveSystem() {
-    config_ = dir_.write("system.textproto", system_config(ports_, dir_.path() / "sessions"));
+  // `record_subdir`: the supervisor's record directory under the test's own.
+  explicit LiveSystem(const std::string& record_subdir = "sessions") {
+    config_ = dir_.write("system.textproto", system_config(ports_, dir_.path() / record_subdir));
     supervisor_ = std::make_unique<Process>(
         SUPERVISOR_BIN, std::vector<std::string>{config_.string()}, dir_.path() / "supervisor.log");
     master_ = std::make_unique<Process>(MASTER_BIN, std::vector<std::string>{config_.string()},
@@ -771,6 +775,112 @@ TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
     ASSERT_FALSE(j.is_discarded()) << r.out;
     EXPECT_NE(r.out.find("/master/telemetry"), std::string::npos) << f << ": " << r.out;
   }
+}
+
+// The rows of one alarm entry on screen from row `first`: that row, then its continuation rows
+// (indented 9, or blank), up to the next entry (a row that starts with an age, or ends with
+// another entry's page mark).
+std::string entry_rows(const std::vector<std::string>& lines, std::size_t first,
+                       const std::regex& mark) {
+  std::string text = std::regex_replace(lines[first], mark, "");
+  for (std::size_t i = first + 1; i < lines.size(); ++i) {
+    const std::string& l = lines[i];
+    const bool continuation = l.empty() || l.rfind("         ", 0) == 0;
+    if (!continuation || std::regex_search(l, mark)) break;
+    text += " " + l;
+  }
+  return text;
+}
+
+std::string without_spaces(std::string s) {
+  s.erase(std::remove_if(s.begin(), s.end(), [](unsigned char c) { return std::isspace(c); }),
+          s.end());
+  return s;
+}
+
+TEST(Console, ALongAlarmIsReadWholeAt80Columns) {
+  // A record directory deep enough that "recording started: <its path>/teleop-session-....mcap"
+  // needs more than the 80x24 screen's alarm rows.
+  LiveSystem sys(
+      "sessions-of-the-console-test-of-long-alarms-with-a-name-long-enough-to-wrap/"
+      "and-a-second-level-as-deep-as-the-shares-of-a-lab");
+  std::optional<Terminal> term;
+  std::string screen;
+  ASSERT_NO_FATAL_FAILURE(open_console(sys, term, screen, false));
+  ASSERT_TRUE(term->wait_for_text("recorder  teleop-session-", screen)) << screen;
+  // r twice: the recording stopped, and a new one started (each announced as an alarm).
+  term->key("r");
+  ASSERT_TRUE(term->wait_for_text("recorder  off", screen)) << screen << sys.logs();
+  term->key("r");
+  ASSERT_TRUE(term->wait_for_text("recording to ", screen)) << screen << sys.logs();
+
+  // The alarm as the supervisor published it (teleopctl status --json): its full text.
+  std::string message;
+  ASSERT_TRUE(eventually([&] {
+    const CliResult r = teleopctl("status --json " + sys.supervisor_flag(), false);
+    const nlohmann::json j = nlohmann::json::parse(r.out, nullptr, false);
+    if (j.is_discarded() || !j.contains("recent_alarms")) return false;
+    for (const nlohmann::json& a : j["recent_alarms"]) {
+      const std::string m = a.value("message", "");
+      if (m.rfind("recording started: ", 0) == 0) message = m;
+    }
+    return !message.empty();
+  }));
+  std::cout << "the alarm: " << message << " (" << message.size() << " characters)\n";
+  ASSERT_GT(message.size() + 30, 2U * 80U) << "not long enough to need paging";
+
+  // On screen: the entry whose first row is "  -N.Ns INFO command system: recording started:",
+  // whole, or page by page (" [p/N]" ending its first row, the same rows each page): every
+  // page read in turn.
+  const std::regex mark(R"( \[(\d)/(\d)\]$)");
+  std::map<int, std::string> pages;
+  int page_count = 0;
+  std::optional<std::size_t> head_row;
+  const bool read = term->wait_for(
+      [&](const std::string& s) {
+        const std::vector<std::string> lines = lines_of(s);
+        for (std::size_t i = 0; i < lines.size(); ++i) {
+          if (lines[i].find("INFO command system: recording started:") != std::string::npos) {
+            if (head_row != i) pages.clear();  // moved (a newer alarm): read it again
+            head_row = i;
+          }
+        }
+        if (!head_row || *head_row >= lines.size()) return false;
+        std::smatch m;
+        const std::string& first = lines[*head_row];
+        if (!std::regex_search(first, m, mark)) {
+          // Whole in its rows (a taller screen would do that): one page.
+          if (first.find("recording started:") == std::string::npos) return false;
+          pages = {{1, entry_rows(lines, *head_row, mark)}};
+          page_count = 1;
+          return true;
+        }
+        const int p = std::stoi(m[1]);
+        const int n = std::stoi(m[2]);
+        if (n != page_count) pages.clear();
+        page_count = n;
+        pages[p] = entry_rows(lines, *head_row, mark);
+        return static_cast<int>(pages.size()) == page_count;
+      },
+      // A page turns every 3 s; a newer alarm (a busy host's overruns) moves the entry or
+      // changes its rows and its reading starts over: bounded only against a hang.
+      screen, 60s);
+  ASSERT_TRUE(read) << "pages read " << pages.size() << " of " << page_count << "\n" << screen;
+  std::string shown;
+  for (const auto& [p, text] : pages) shown += text;
+  std::cout << screen << "read in " << page_count << " pages: " << shown << "\n";
+  EXPECT_GT(page_count, 1) << "the alarm fitted whole: nothing paged";
+  // Every character of the alarm, in order (the breaks fall anywhere in the path).
+  EXPECT_NE(without_spaces(shown).find(without_spaces("INFO command system: " + message)),
+            std::string::npos)
+      << shown << "\nexpected " << message;
+  // The panels above stayed where they were: the alarm count row still under the recorder.
+  const std::vector<std::string> lines = lines_of(screen);
+  ASSERT_EQ(lines.size(), 24U) << screen;
+  EXPECT_EQ(lines[0].rfind("TELEOP CONSOLE  live ", 0), 0U) << screen;
+  EXPECT_EQ(lines[23].rfind("x E-STOP", 0), 0U) << screen;
+  EXPECT_TRUE(has_line_starting(screen, "recorder  teleop-session-")) << screen;
+  EXPECT_TRUE(has_line_starting(screen, "stability ")) << screen;
 }
 
 TEST(Console, WithoutATerminalExitsOneNamingTeleopctlStatus) {

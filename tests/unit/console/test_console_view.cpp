@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <sstream>
 #include <string>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 #include "supervisor/teleopctl/console_view.hpp"
@@ -343,11 +345,81 @@ TEST(ConsoleScreen, AnAlarmsEvidenceWrapsOntoASecondRowWhileTheRowsAllowIt) {
   EXPECT_NE(lines[19].find("older 3"), std::string::npos) << joined(lines);
   EXPECT_EQ(lines[22], "a message");
 
+  // Its evidence, cut from that one row, comes in turn in the same row: the text wrapped 6
+  // columns narrower (the same break, at 72), a page of one row each 3 s of the wall clock, the
+  // page's number at the end of the row (" [p/N]" in the last 6 columns).
+  const std::string first =
+      "   -2.0s WARN oscillation slave: sustained oscillation amplitude=0.541mm";
+  const std::string second = "         frequency=16Hz previous_amplitude=0.143mm";
+  for (const auto& [clock_s, row] : {std::pair{0.0, first + "   [1/2]"},
+                                     std::pair{4.0, second + std::string(24, ' ') + " [2/2]"},
+                                     std::pair{6.5, first + "   [1/2]"}}) {
+    v.clock_s = clock_s;
+    lines = render_console(v, 24, 80);
+    ASSERT_EQ(lines.size(), 24u);
+    EXPECT_EQ(lines[16], row) << clock_s << "\n" << joined(lines);
+    // The others stay where they were.
+    EXPECT_NE(lines[17].find("older 1"), std::string::npos) << joined(lines);
+    EXPECT_NE(lines[19].find("older 3"), std::string::npos) << joined(lines);
+    EXPECT_EQ(lines[22], "a message");
+  }
+  v.clock_s = -1.0;
+
   // Two alarms in the same room: the first takes its two rows, the second one.
   v.status->mutable_recent_alarms()->DeleteSubrange(2, 5);
   lines = render_console(v, 24, 80);
   EXPECT_EQ(lines[17], "         frequency=16Hz previous_amplitude=0.143mm") << joined(lines);
   EXPECT_NE(lines[18].find("older 1"), std::string::npos) << joined(lines);
+}
+
+TEST(ConsoleScreen, ALongAlarmTakesTheRowsItNeedsAndPagesThroughTheRestAt80x24) {
+  ConsoleView v;
+  v.status = engaged_status();
+  // 4 alarm rows at 80x24 (ATallerTerminalGivesThePlotsAndTheAlarmsTheExtraRows). An alarm
+  // of 5 rows at 80 columns, and an older one: the newest takes 4 - 1 = 3 rows, pages of 3.
+  std::string words;
+  for (int i = 0; i < 40; ++i) words += " word" + std::to_string(i);
+  add_alarm(*v.status, 98'000'000'000, "long:" + words);
+  add_alarm(*v.status, 90'000'000'000, "older", "loss");
+  // The row "   -2.0s WARN oscillation slave: long: word0 ... word39" is 308 characters:
+  // word-wrapped at 80 columns (continuations indented 9) 5 rows, so it pages; at 74 (80 less
+  // the mark) 5 rows too ("word5", "word15", "word24", "word33" end the first four): two
+  // pages of 3 rows, the second's last row blank.
+  std::vector<std::string> all;
+  for (int turn = 0; turn < 4; ++turn) {
+    v.clock_s = 3.0 * turn + 0.5;  // a page each 3 s: 1, 2, 1, 2
+    const std::vector<std::string> lines = render_console(v, 24, 80);
+    ASSERT_EQ(lines.size(), 24u);
+    for (const std::string& l : lines) EXPECT_LE(l.size(), 80u) << l;
+    const int page = turn % 2 + 1;
+    ASSERT_EQ(lines[16].size(), 80u) << joined(lines);
+    EXPECT_EQ(lines[16].substr(74), " [" + std::to_string(page) + "/2]") << joined(lines);
+    if (page == 1) {
+      EXPECT_EQ(lines[16].substr(0, 74),
+                "   -2.0s WARN oscillation slave: long: word0 word1 word2 word3 word4 word5");
+      EXPECT_EQ(lines[18].rfind("         word16 ", 0), 0U) << lines[18];
+    } else {
+      EXPECT_EQ(lines[16].rfind("         word25 ", 0), 0U) << lines[16];
+      EXPECT_EQ(lines[17], "         word34 word35 word36 word37 word38 word39");
+      EXPECT_EQ(lines[18], "");
+    }
+    if (turn < 2) {
+      all.push_back(lines[16].substr(0, 74));
+      all.push_back(lines[17]);
+      all.push_back(lines[18]);
+    }
+    // The older alarm keeps its row under it.
+    EXPECT_EQ(lines[19], "  -10.0s WARN loss slave: older") << joined(lines);
+  }
+  // Both pages together: every word of the alarm once, in order.
+  std::vector<std::string> shown;
+  for (const std::string& r : all) {
+    std::istringstream in(r);
+    for (std::string w; in >> w;) shown.push_back(w);
+  }
+  std::vector<std::string> expected = {"-2.0s", "WARN", "oscillation", "slave:", "long:"};
+  for (int i = 0; i < 40; ++i) expected.push_back("word" + std::to_string(i));
+  EXPECT_EQ(shown, expected);
 }
 
 TEST(ConsoleScreen, ReadOnlyReplayAndHelpScreens) {

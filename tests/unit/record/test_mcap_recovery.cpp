@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <array>
+#include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/record/mcap_reader.hpp"
@@ -138,6 +140,46 @@ TEST(McapRecovery, RecoverFileWritesAValidIndexedFile) {
     EXPECT_EQ(got[i].sequence, i / 3) << "per-channel sequence kept";
     EXPECT_EQ(got[i].channel->topic, kTopics[i % 3]);
   }
+}
+
+TEST(McapRecovery, RecoverFileReportsBothPassesInBytes) {
+  test::TempDir dir;
+  const Layout l = write_small(dir / "full.mcap");
+  const std::size_t cut = l.chunks[3].end - 100;
+  test::spit(dir / "cut.mcap", std::string_view(l.file).substr(0, cut));
+  // The top-level records wholly before the cut, by the test's own walk: where the scan is
+  // after each, and the offsets of the chunks (the copy goes chunk by chunk).
+  std::vector<std::uint64_t> record_ends;
+  std::vector<std::uint64_t> chunk_starts;
+  for (const test::Rec& r : test::walk(l.file)) {
+    if (r.end() > cut) break;
+    if (r.op != 0x01) record_ends.push_back(r.end());  // the Header is not a step of the scan
+    if (r.op == 0x06) chunk_starts.push_back(r.offset);
+  }
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> scanned;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> copied;
+  const RecoveryReport rep = recover_file(
+      dir / "cut.mcap", dir / "fixed.mcap",
+      [&](std::uint64_t done, std::uint64_t total) { scanned.emplace_back(done, total); },
+      [&](std::uint64_t done, std::uint64_t total) { copied.emplace_back(done, total); });
+  // The scan: after each record, of the damaged file's size, up to where the data is whole.
+  ASSERT_EQ(scanned.size(), record_ends.size());
+  for (std::size_t i = 0; i < scanned.size(); ++i) {
+    EXPECT_EQ(scanned[i].first, record_ends[i]) << i;
+    EXPECT_EQ(scanned[i].second, cut) << i;
+  }
+  EXPECT_EQ(scanned.back().first, rep.data_end);
+  // The copy: each kept message at its chunk's offset, of data_end, then data_end itself.
+  ASSERT_EQ(copied.size(), rep.messages + 1);
+  for (std::size_t i = 0; i + 1 < copied.size(); ++i) {
+    const std::size_t m = i + 1;  // messages so far: the chunk holding the i-th is the first
+                                  // whose messages_before_and_in reaches m
+    std::size_t chunk = 0;
+    while (l.chunks[chunk].messages_before_and_in < m) ++chunk;
+    EXPECT_EQ(copied[i].first, chunk_starts.at(chunk)) << i;
+    EXPECT_EQ(copied[i].second, rep.data_end) << i;
+  }
+  EXPECT_EQ(copied.back(), std::make_pair(rep.data_end, rep.data_end));
 }
 
 TEST(McapRecovery, ACorruptChunkStopsRecoveryThere) {

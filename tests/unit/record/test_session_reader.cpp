@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/record/session.hpp"
@@ -163,6 +164,36 @@ TEST(SessionReader, CyclesOfEachNodeAsWritten) {
   ASSERT_EQ(slave.size(), 2U);
   expect_cycle(slave[0], 0xCCCC, 10, 1'500'000, node::Mode::kAligning, 4.0);
   expect_cycle(slave[1], 0xCCCC, 11, 2'500'000, node::Mode::kSafe, 5.0);
+}
+
+TEST(SessionReader, APassReportsHowFarItIsThroughTheFile) {
+  const TempDir dir;
+  (void)write_session(dir / "s.mcap");
+  const SessionReader session = SessionReader::open(dir / "s.mcap");
+  const std::uint64_t size = fs::file_size(dir / "s.mcap");
+  for (const bool master : {true, false}) {
+    std::vector<std::pair<std::uint64_t, std::uint64_t>> read;
+    const std::vector<RecordedCycle> cycles = session.cycles(
+        master, [&](std::uint64_t done, std::uint64_t total) { read.emplace_back(done, total); });
+    // The same cycles as without (CyclesOfEachNodeAsWritten checks them against the writer's).
+    EXPECT_EQ(cycles.size(), session.cycles(master).size());
+    ASSERT_FALSE(read.empty());
+    for (std::size_t i = 0; i < read.size(); ++i) {
+      EXPECT_EQ(read[i].second, size) << i;
+      if (i > 0) {
+        EXPECT_GE(read[i].first, read[i - 1].first) << i;
+      }
+    }
+    // Ends at the file's size; before that, inside the data (past the magic and the Header).
+    EXPECT_EQ(read.back().first, size);
+    for (std::size_t i = 0; i + 1 < read.size(); ++i) {
+      EXPECT_GT(read[i].first, 8U);
+      EXPECT_LT(read[i].first, size);
+    }
+  }
+  std::uint64_t config_done = 0;
+  ASSERT_TRUE(session.config([&](std::uint64_t done, std::uint64_t) { config_done = done; }));
+  EXPECT_EQ(config_done, size);
 }
 
 TEST(SessionReader, ConfigurationReportsAlarmsChangesAndStatusAsWritten) {
