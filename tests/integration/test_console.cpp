@@ -777,7 +777,6 @@ TEST(Console, RecordingStopsAndStartsAgainFromTheKeyEachFileWhole) {
   }
 }
 
-
 TEST(Console, WithoutATerminalExitsOneNamingTeleopctlStatus) {
   // stdin from /dev/null and stdout a pipe: no terminal.
   const CliResult r = teleopctl("console < /dev/null");
