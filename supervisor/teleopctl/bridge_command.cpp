@@ -119,14 +119,17 @@ class NodeFeed {
     // seen in this node session (the least delayed message), so cycles keep their spacing.
     if (t.session_id() != session_) {
       session_ = t.session_id();
-      offset_ns_.reset();
+      has_offset_ = false;
     }
+    // (A flag and a value, not std::optional: GCC 12 at -O3 calls the optional's value "maybe
+    // uninitialized" here, an error in a Release build with TELEOP_WERROR.)
     const std::int64_t candidate = now - t.sent_time_ns();
-    if (!offset_ns_ || candidate < *offset_ns_) offset_ns_ = candidate;
+    if (!has_offset_ || candidate < offset_ns_) offset_ns_ = candidate;
+    has_offset_ = true;
     std::string out;
     v1::CycleRecord one;
     for (const v1::CycleRecord& c : t.cycles()) {
-      std::int64_t stamp = c.sample_time_ns() + *offset_ns_;
+      std::int64_t stamp = c.sample_time_ns() + offset_ns_;
       stamp = std::max(stamp, last_stamp_ + 1);  // never backwards on the channel
       last_stamp_ = stamp;
       one = c;
@@ -143,7 +146,8 @@ class NodeFeed {
   std::uint32_t telemetry_;
   std::uint32_t cycle_;
   std::uint64_t session_{0};
-  std::optional<std::int64_t> offset_ns_{};
+  bool has_offset_{false};
+  std::int64_t offset_ns_{0};
   std::int64_t last_stamp_{std::numeric_limits<std::int64_t>::min() + 1};
   std::uint64_t malformed_{0};
 };
