@@ -437,7 +437,10 @@ class HostileWire : public ::testing::Test {
     expect_all_running(what);
     if (HasFailure()) return;
     if (const std::string stall = host_stall(); !stall.empty()) {
-      GTEST_SKIP() << what << ": inconclusive, the host stalled both nodes' loops: " << stall;
+      // Not a skip: a failure with host-timing evidence, run again by scripts/run-ctest.sh
+      // (docs/testing.md "Host stalls"), so the attack is judged on a run the host let happen.
+      HostTiming::instance().note("both loops stalled: " + stall);
+      FAIL() << what << ": inconclusive, the host stalled both nodes' loops: " << stall;
     }
     System& s = *sys_;
     for (const int port : {s.ports.nodes.master_command, s.ports.nodes.slave_command}) {
@@ -469,7 +472,8 @@ class HostileWire : public ::testing::Test {
       expect_all_running(what);
       if (HasFailure()) return;
       if (const std::string stall = host_stall(); !stall.empty()) {
-        GTEST_SKIP() << what << ": inconclusive, the host stalled both nodes' loops: " << stall;
+        HostTiming::instance().note("both loops stalled: " + stall);  // rerun, as above
+        FAIL() << what << ": inconclusive, the host stalled both nodes' loops: " << stall;
       }
       const Departures d = departures(what);
       if (d.text.empty()) {
