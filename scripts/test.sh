@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The README's second command: build (installing dependencies if needed) and run every test.
 #   scripts/test.sh            normal build in build/
-#   scripts/test.sh --sanitize ASan+UBSan build with clang in build-asan/
+#   scripts/test.sh --sanitize Debug build with ASan+UBSan and clang in build-asan/
 # TELEOP_BUILD_TYPE=Release|Debug|RelWithDebInfo (default) picks the normal build's type.
 #
 # scripts/run-ctest.sh runs the tests, and again, at most twice, only those that failed with the
@@ -11,7 +11,8 @@ cd "$(dirname "$0")/.."
 ./scripts/install-deps.sh
 
 if [ "${1:-}" = "--sanitize" ]; then
-  CC=clang CXX=clang++ ./scripts/build.sh build-asan -DTELEOP_SANITIZE=ON -DTELEOP_BUILD_BENCH=OFF
+  CC=clang CXX=clang++ ./scripts/build.sh build-asan -DCMAKE_BUILD_TYPE=Debug -DTELEOP_SANITIZE=ON \
+    -DTELEOP_BUILD_BENCH=OFF
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
   ./scripts/run-ctest.sh build-asan
 else
