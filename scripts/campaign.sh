@@ -43,7 +43,7 @@ first_run_and_reruns() {
 }
 
 ./scripts/build.sh "$BUILD" >/dev/null || { echo "campaign: build failed"; exit 1; }
-ctl=./$BUILD/supervisor/teleopctl/teleopctl
+ctl=$BUILD/supervisor/teleopctl/teleopctl
 
 if want analyser; then
 part "analyser against the 50-digit reference ($CASES seeded cases)"
