@@ -14,6 +14,8 @@ if [ "${1:-}" = "--sanitize" ]; then
   CC=clang CXX=clang++ ./scripts/build.sh build-asan -DCMAKE_BUILD_TYPE=Debug -DTELEOP_SANITIZE=ON \
     -DTELEOP_BUILD_BENCH=OFF
   export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+  LSAN_OPTIONS=suppressions=$(pwd)/scripts/lsan.supp:print_suppressions=0
+  export LSAN_OPTIONS
   ./scripts/run-ctest.sh build-asan
 else
   ./scripts/build.sh build -DCMAKE_BUILD_TYPE="${TELEOP_BUILD_TYPE:-RelWithDebInfo}"

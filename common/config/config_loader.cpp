@@ -3,6 +3,7 @@
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cerrno>
@@ -27,6 +28,12 @@ using text_format::Problems;
 
 constexpr int kMaxDelaySamples = 1000;
 constexpr int kMaxPointsPerAxis = 100;
+constexpr int kMaxForceLevels = 100;
+// The humans a band holds (force levels x points_per_axis^3), each analysed at start, on every
+// guarded change and by `analyze`: about 30 us each for one axis (docs/benchmarks.md), so the
+// converged fine grid of docs/benchmarks.md (19 x 12^3 = 32 832) fits, in about a second, and
+// 100 levels x 100^3 (days of analysis) does not.
+constexpr long kMaxBandHumans = 40'000;
 
 // How many times validate() ran (validation_count()).
 std::atomic<std::uint64_t> validations{0};
@@ -34,11 +41,46 @@ std::atomic<std::uint64_t> validations{0};
 // ---------------------------------------------------------------------------------------------
 // Validation
 
+// The elements of one repeated field named one by one up to kElementsNamed; the rest counted in
+// one line (a million NaN in a list, or a thousand planes with a NaN each, is a short error).
+constexpr int kElementsNamed = 3;
+
+// "a.plane[12].normal[1]" -> "a.plane[].normal[]": the elements alike.
+std::string without_indices(std::string_view path) {
+  std::string out;
+  bool in_index = false;
+  for (const char c : path) {
+    if (c == ']') in_index = false;
+    if (!in_index) out += c;
+    if (c == '[') in_index = true;
+  }
+  return out;
+}
+
 // Every numeric value anywhere in the configuration, by the one parameter space
 // (parameter_space.hpp): finite, and the sign and range config.proto documents for the field.
 void check_fields(const pb::Message& message, Problems& problems) {
+  struct Alike {
+    std::string key;
+    std::string first_counted;  // the first element not named (where the count points)
+    int count{0};
+  };
+  std::vector<Alike> alike;
   for (const FieldProblem& p : teleop::config::check_fields(message)) {
-    problems.add(p.path, p.message);
+    const std::string key = without_indices(p.path);
+    auto it =
+        std::find_if(alike.begin(), alike.end(), [&](const Alike& a) { return a.key == key; });
+    if (it == alike.end()) it = alike.insert(alike.end(), {key, "", 0});
+    if (++it->count <= kElementsNamed || key == p.path) {
+      problems.add(p.path, p.message);
+    } else if (it->first_counted.empty()) {
+      it->first_counted = p.path;
+    }
+  }
+  for (const Alike& a : alike) {
+    if (a.first_counted.empty()) continue;
+    problems.add(a.first_counted, "and " + std::to_string(a.count - kElementsNamed) +
+                                      " more elements like these (" + a.key + ")");
   }
 }
 
@@ -82,21 +124,40 @@ void require_present(Problems& problems, std::string_view path, bool present,
 void check_device(Problems& problems, const std::string& side, const teleop::v1::Side& config) {
   if (config.has_device()) {
     const std::string prefix = side + ".device.";
-    require_present(problems, prefix + "mass_kg", config.device().has_mass_kg(),
-                    "a device needs its mass");
+    require_present(problems, prefix + "mass_kg",
+                    config.device().has_mass_kg() || !config.device().mass_matrix_kg().empty(),
+                    "a device needs its mass (or mass_matrix_kg)");
   }
 }
 
-void check_band(Problems& problems, const teleop::v1::HumanBand& band) {
-  const std::string prefix = "human.band.";
+// `prefix`: "human.band." or "human.band_per_axis[i]." (several axes: each band alike).
+void check_band(Problems& problems, const teleop::v1::HumanBand& band, const std::string& prefix) {
   if (band.force_levels_n_size() == 0) {
     problems.add(prefix + "force_levels_N", "missing (a band needs at least one force level)");
+  }
+  // Each level is points_per_axis^3 humans to analyse: a bounded band, as points_per_axis is.
+  if (band.force_levels_n_size() > kMaxForceLevels) {
+    problems.add(prefix + "force_levels_N", "at most " + std::to_string(kMaxForceLevels) +
+                                                " force levels, got " +
+                                                std::to_string(band.force_levels_n_size()));
   }
   if (band.has_points_per_axis() &&
       (band.points_per_axis() < 2 || band.points_per_axis() > kMaxPointsPerAxis)) {
     problems.add(prefix + "points_per_axis", "must be in [2, " + std::to_string(kMaxPointsPerAxis) +
                                                  "], got " +
                                                  std::to_string(band.points_per_axis()));
+  } else if (band.force_levels_n_size() <= kMaxForceLevels) {
+    // Both within their own ranges: now their product (at most 100 x 100^3, no overflow).
+    const long points =
+        band.has_points_per_axis() ? band.points_per_axis() : defaults::kBandPointsPerAxis;
+    const long humans = band.force_levels_n_size() * points * points * points;
+    if (humans > kMaxBandHumans) {
+      problems.add(prefix.substr(0, prefix.size() - 1),
+                   std::to_string(humans) + " humans to analyse (" +
+                       std::to_string(band.force_levels_n_size()) + " force levels x " +
+                       std::to_string(points) + "^3 points), at most " +
+                       std::to_string(kMaxBandHumans) + ": fewer force levels or points_per_axis");
+    }
   }
 
   struct Axis {
@@ -174,15 +235,20 @@ void check_ranges(const teleop::v1::SystemConfig& c, Problems& problems) {
       case teleop::v1::Human::kFixed:
         break;
       case teleop::v1::Human::kBand:
-        check_band(problems, human.band());
+        check_band(problems, human.band(), "human.band.");
         break;
       case teleop::v1::Human::kNone:
         break;
       case teleop::v1::Human::KIND_NOT_SET:
+        if (!human.band_per_axis().empty()) break;  // several axes: axes_config.cpp's rules
         problems.add("human",
                      "give one of fixed, band or none (or leave out the section for the "
                      "default band)");
         break;
+    }
+    for (int i = 0; i < human.band_per_axis_size(); ++i) {
+      check_band(problems, human.band_per_axis(i),
+                 "human.band_per_axis[" + std::to_string(i) + "].");
     }
   }
   if (c.has_force_loop()) {
@@ -279,6 +345,7 @@ void validate(const LoadedConfig& config) {
   Problems problems(config);
   check_fields(config.config, problems);
   check_ranges(config.config, problems);
+  check_axes(config, problems);
   check_endpoints(config.config, problems);
   problems.throw_if_any();
 }
@@ -289,6 +356,22 @@ TeleopParams to_teleop_params(const LoadedConfig& config) {
 }
 
 TeleopParams teleop_params_of_validated(const LoadedConfig& config) {
+  require_one_axis(config);  // axes_config.cpp: n > 1 (or an n-axis field) refused, named
+  return one_axis_params_of_validated(config);
+}
+
+HumanBand to_band(const teleop::v1::HumanBand& band) {
+  HumanBand out;
+  out.force_levels_N.assign(band.force_levels_n().begin(), band.force_levels_n().end());
+  out.points_per_axis =
+      band.has_points_per_axis() ? band.points_per_axis() : defaults::kBandPointsPerAxis;
+  out.mass_kg = to_band(band.mass_kg());
+  out.damping_Ns_per_m = to_band(band.damping_ns_per_m());
+  out.stiffness_N_per_m = to_band(band.stiffness_n_per_m());
+  return out;
+}
+
+TeleopParams one_axis_params_of_validated(const LoadedConfig& config) {
   const teleop::v1::SystemConfig& c = config.config;
   constexpr std::string_view kPurpose = "analyse the teleoperator";
   std::vector<std::string> missing;
@@ -324,15 +407,10 @@ TeleopParams teleop_params_of_validated(const LoadedConfig& config) {
     params.human.kind = HumanKind::kFixed;
     params.human.fixed = {fixed.mass_kg(), fixed.damping_ns_per_m(), fixed.stiffness_n_per_m()};
   } else if (c.human().has_band()) {
-    const teleop::v1::HumanBand& band = c.human().band();
     params.human.kind = HumanKind::kBand;
-    params.human.band.force_levels_N.assign(band.force_levels_n().begin(),
-                                            band.force_levels_n().end());
-    params.human.band.points_per_axis =
-        band.has_points_per_axis() ? band.points_per_axis() : defaults::kBandPointsPerAxis;
-    params.human.band.mass_kg = to_band(band.mass_kg());
-    params.human.band.damping_Ns_per_m = to_band(band.damping_ns_per_m());
-    params.human.band.stiffness_N_per_m = to_band(band.stiffness_n_per_m());
+    params.human.band = to_band(c.human().band());
+  } else if (!c.human().band_per_axis().empty()) {
+    params.human.kind = HumanKind::kBand;  // several axes: axes_config.cpp reads the bands
   } else {
     params.human.kind = HumanKind::kNone;
   }

@@ -73,6 +73,9 @@ struct LoadedConfig {
 // - Scalars: double/float (`nan`/`inf` parse, and validate() then rejects them), integers,
 //   bool (true/false/1/0), enum by value name, string.
 // - A repeated scalar takes a comma list, replacing the old one: `human.band.force_levels_N=2,5,8`.
+// - An element by index: `master.device.mass_matrix_kg[4]=0.3`, `slave.fixture.plane[1].offset_m=
+//   0.02`, `slave.fixture.plane[0]={normal: [0, 0, 1]}`; the index one past the last adds an
+//   element, a larger one is refused.
 // - A message takes a text-format body in braces, replacing the old one: `human.none={}`,
 //   `gains={kpm: 600 kps: 600}`.
 // Throws ConfigError naming the assignment and path: no '=', unknown field, not a scalar,
@@ -94,6 +97,8 @@ void validate(const LoadedConfig& config);
 // master.device, slave.device and gains, e.g. "FILE: missing section 'gains' (needed to analyse
 // the teleoperator)". Defaults: scaling 1 and 1, no velocity filter, no delay, no fixtures,
 // human = default_human_band(), required damping ratio 0, stiffness tolerance 1 N/m.
+// One axis only: a file with `axes` above 1, or any n-axis field, is refused naming it
+// (axes_config.hpp reads those).
 [[nodiscard]] TeleopParams to_teleop_params(const LoadedConfig& config);
 
 // The force-controlled device. Validates first, then requires the force_loop section.

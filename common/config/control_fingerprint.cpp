@@ -10,6 +10,7 @@
 
 #include "common/config/node_loader.hpp"
 #include "common/config/system_compiler.hpp"
+#include "common/stability/analysis_axes.hpp"
 #include "common/stability/analyzer.hpp"
 
 namespace teleop::config {
@@ -154,29 +155,16 @@ std::string fingerprint_hex(std::uint64_t fingerprint) {
   return fmt::format("{:016x}", fingerprint);
 }
 
-ConfigurationCheck check_configuration(const TeleopParams& params, bool allow_unstable) {
-  ConfigurationCheck c;
-  c.allow_unstable = allow_unstable;
-  c.required_damping_ratio = params.analysis.required_damping_ratio;
-  // Two free-running loops add at least one sample of round trip.
-  TeleopParams p = params;
-  p.round_trip_delay_samples = std::max(1, params.round_trip_delay_samples);
-  c.round_trip_samples = p.round_trip_delay_samples;
-  bool meets = false;
-  try {
-    const stability::AnalysisResult r = stability::analyze(p);
-    c.verdict = std::string(stability::to_string(r.verdict));
-    c.min_damping_ratio = r.min_damping_ratio;
-    if (!std::isfinite(r.min_damping_ratio) || !std::isfinite(r.spectral_radius)) {
-      c.verdict = "invalid";
-    }
-    // NaN compares false: never "meets".
-    meets = c.verdict == "stable" && r.min_damping_ratio >= c.required_damping_ratio;
-  } catch (const std::exception&) {
+namespace {
+
+// The verdict and damping ratio of the own analysis -> coupling permitted or refused, and why.
+// NaN compares false: never "meets".
+void conclude(ConfigurationCheck& c, double spectral_radius) {
+  if (!std::isfinite(c.min_damping_ratio) || !std::isfinite(spectral_radius)) {
     c.verdict = "invalid";
-    c.min_damping_ratio = std::nan("");
   }
-  c.permits_coupling = meets || allow_unstable;
+  const bool meets = c.verdict == "stable" && c.min_damping_ratio >= c.required_damping_ratio;
+  c.permits_coupling = meets || c.allow_unstable;
   if (!c.permits_coupling) {
     c.refusal = fmt::format(
         "refused: the configuration's own analysis says {} (least damping ratio {:.4f}, "
@@ -185,7 +173,44 @@ ConfigurationCheck check_configuration(const TeleopParams& params, bool allow_un
         c.verdict, c.min_damping_ratio, c.required_damping_ratio, c.round_trip_samples,
         c.round_trip_samples == 1 ? "" : "s");
   }
+}
+
+// The own analysis of `params` (one axis or n), at a round trip of at least one sample: two
+// free-running loops add one. `analyse` returns the analyser's result (verdict, least damping
+// ratio, spectral radius); a throw is an invalid configuration.
+template <typename Params, typename Analyse>
+ConfigurationCheck check_with(const Params& params, bool allow_unstable, Analyse analyse) {
+  ConfigurationCheck c;
+  c.allow_unstable = allow_unstable;
+  c.required_damping_ratio = params.analysis.required_damping_ratio;
+  Params p = params;
+  p.round_trip_delay_samples = std::max(1, params.round_trip_delay_samples);
+  c.round_trip_samples = p.round_trip_delay_samples;
+  double radius = std::nan("");
+  try {
+    const auto r = analyse(p);
+    c.verdict = std::string(stability::to_string(r.verdict));
+    c.min_damping_ratio = r.min_damping_ratio;
+    radius = r.spectral_radius;
+  } catch (const std::exception&) {
+    c.verdict = "invalid";
+    c.min_damping_ratio = std::nan("");
+  }
+  conclude(c, radius);
   return c;
+}
+
+}  // namespace
+
+ConfigurationCheck check_configuration(const TeleopParams& params, bool allow_unstable) {
+  return check_with(params, allow_unstable,
+                    [](const TeleopParams& p) { return stability::analyze(p); });
+}
+
+// Every plane active (the equilibrium in their corner), no plane limits: the verdict only.
+ConfigurationCheck check_configuration_axes(const TeleopAxesParams& params, bool allow_unstable) {
+  return check_with(params, allow_unstable,
+                    [](const TeleopAxesParams& p) { return stability::analyze_axes(p); });
 }
 
 }  // namespace teleop::config

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "common/config/config_loader.hpp"
+#include "common/core/teleop_axes.hpp"
 #include "common/core/teleop_params.hpp"
 #include "common/node/node_core.hpp"
 
@@ -66,5 +67,9 @@ struct ConfigurationCheck {
 };
 [[nodiscard]] ConfigurationCheck check_configuration(const TeleopParams& params,
                                                      bool allow_unstable);
+// The same for n task-space axes (issue 18): analyze_axes of the whole loop with every plane
+// active, at a round trip of at least one sample.
+[[nodiscard]] ConfigurationCheck check_configuration_axes(const TeleopAxesParams& params,
+                                                          bool allow_unstable);
 
 }  // namespace teleop::config

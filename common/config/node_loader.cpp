@@ -1,12 +1,16 @@
 #include "common/config/node_loader.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <string>
 
+#include "common/config/axes_config.hpp"
+#include "common/config/axes_scene_loader.hpp"
 #include "common/config/config_internal.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/parameter_space.hpp"
 #include "common/config/system_compiler.hpp"
+#include "common/control/law_axes_params.hpp"
 #include "common/core/defaults.hpp"
 
 namespace teleop::config {
@@ -232,7 +236,230 @@ NodeSetup to_node_setup(const LoadedConfig& config, Role role) {
   if (role != Role::kMaster && role != Role::kSlave) {
     throw ConfigError("node role must be master or slave");
   }
+  // Several axes: the n-axis setup, so every tool that asks for a node's endpoints (launch,
+  // console, status, bridge) gets them from the same function for any n.
+  if (configured_axes(config.config) > 1) return to_node_axes_setup(config, role);
   return compile_system(config).node(role);
+}
+
+namespace {
+
+// --- axes > 1 --------------------------------------------------------------------------------
+
+// A double in the shortest text that reads back to it (control_fingerprint.hpp's canonical
+// form; -0 as 0).
+std::string canonical(double v) {
+  if (v == 0.0) v = 0.0;
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof(buf), v);
+  return std::string(buf, r.ptr);
+}
+
+class AxesFields {
+ public:
+  void add(const std::string& path, double v) { fields_.push_back({path, canonical(v)}); }
+  void add(const std::string& path, const Eigen::MatrixXd& m) {
+    add(path + ".rows", static_cast<double>(m.rows()));
+    add(path + ".cols", static_cast<double>(m.cols()));
+    for (Eigen::Index i = 0; i < m.rows(); ++i) {
+      for (Eigen::Index j = 0; j < m.cols(); ++j) {
+        add(path + "[" + std::to_string(i) + "][" + std::to_string(j) + "]", m(i, j));
+      }
+    }
+  }
+  void add(const std::string& path, const std::vector<PlaneFixtureParams>& planes) {
+    add(path + ".count", static_cast<double>(planes.size()));
+    for (std::size_t k = 0; k < planes.size(); ++k) {
+      const std::string q = path + "[" + std::to_string(k) + "]";
+      add(q + ".normal", Eigen::MatrixXd(planes[k].normal));
+      add(q + ".offset_m", planes[k].offset_m);
+      add(q + ".stiffness_N_per_m", planes[k].stiffness_N_per_m);
+    }
+  }
+  void add(const std::string& path, const ParameterBand& b) {
+    add(path + ".lower.intercept", b.lower.intercept);
+    add(path + ".lower.slope_per_N", b.lower.slope_per_N);
+    add(path + ".upper.intercept", b.upper.intercept);
+    add(path + ".upper.slope_per_N", b.upper.slope_per_N);
+  }
+  [[nodiscard]] const std::vector<ControlField>& fields() const { return fields_; }
+
+ private:
+  std::vector<ControlField> fields_{};
+};
+
+void add_human_fields(AxesFields& f, const HumanModelAxes& h) {
+  f.add("human.kind", static_cast<double>(static_cast<int>(h.kind)));
+  if (h.kind == HumanKind::kFixed) {
+    f.add("human.fixed.mass_kg", h.fixed.mass_kg);
+    f.add("human.fixed.damping_Ns_per_m", h.fixed.damping_Ns_per_m);
+    f.add("human.fixed.stiffness_N_per_m", h.fixed.stiffness_N_per_m);
+  }
+  for (std::size_t i = 0; i < h.band_per_axis.size(); ++i) {
+    const HumanBand& b = h.band_per_axis[i];
+    const std::string q = "human.band_per_axis[" + std::to_string(i) + "]";
+    for (std::size_t k = 0; k < b.force_levels_N.size(); ++k) {
+      f.add(q + ".force_levels_N[" + std::to_string(k) + "]", b.force_levels_N[k]);
+    }
+    f.add(q + ".points_per_axis", b.points_per_axis);
+    f.add(q + ".mass_kg", b.mass_kg);
+    f.add(q + ".damping_Ns_per_m", b.damping_Ns_per_m);
+    f.add(q + ".stiffness_N_per_m", b.stiffness_N_per_m);
+  }
+}
+
+// The n-axis control-relevant values (control_fingerprint.hpp's set, as matrices and planes):
+// both nodes of one file compute the same, a change of any of them another.
+std::vector<ControlField> axes_control_fields(const AxesConfig& a, const node::NodeSettings& s,
+                                              bool allow_unstable) {
+  const TeleopAxesParams& t = a.teleop;
+  AxesFields f;
+  f.add("axes", t.axes);
+  f.add("sample_rate_hz", t.sample_rate_hz);
+  f.add("master.device.mass_kg", t.master_device.mass_kg);
+  f.add("master.device.damping_Ns_per_m", Eigen::MatrixXd(t.master_device.damping_Ns_per_m));
+  f.add("slave.device.mass_kg", t.slave_device.mass_kg);
+  f.add("slave.device.damping_Ns_per_m", Eigen::MatrixXd(t.slave_device.damping_Ns_per_m));
+  f.add("master.kinematics", static_cast<double>(static_cast<int>(a.master_kinematics.kind)));
+  f.add("slave.kinematics", static_cast<double>(static_cast<int>(a.slave_kinematics.kind)));
+  f.add("master.fixture.plane", t.master_planes);
+  f.add("slave.fixture.plane", t.slave_planes);
+  f.add("gains.kpm", t.gains.kpm);
+  f.add("gains.kps", t.gains.kps);
+  f.add("gains.kdm", t.gains.kdm);
+  f.add("gains.kds", t.gains.kds);
+  f.add("gains.kvm", t.gains.kvm);
+  f.add("gains.kvs", t.gains.kvs);
+  f.add("gains.kfm", t.gains.kfm);
+  f.add("scaling.position", t.scaling.position);
+  f.add("scaling.force", t.scaling.force);
+  f.add("velocity_filter.cutoff_hz", t.velocity_cutoff_hz);
+  f.add("round_trip_delay_samples", t.round_trip_delay_samples);
+  add_human_fields(f, t.human);
+  f.add("analysis.required_damping_ratio", t.analysis.required_damping_ratio);
+  f.add("analysis.stiffness_tolerance_N_per_m", t.analysis.stiffness_tolerance_N_per_m);
+  f.add("link.peer_timeout_ns", static_cast<double>(s.machine.peer_timeout.count()));
+  f.add("link.engage_ramp_ns", static_cast<double>(s.machine.engage_ramp.count()));
+  f.add("link.safe_ramp_ns", static_cast<double>(s.safe_ramp.count()));
+  f.add("link.alignment_tolerance_m", s.alignment.tolerance_m);
+  f.add("link.centring_stiffness_N_per_m", s.alignment.centring_stiffness_N_per_m);
+  f.add("link.centring_damping_Ns_per_m", s.alignment.centring_damping_Ns_per_m);
+  f.add("link.centring_max_force_N", s.alignment.centring_max_force_N);
+  f.add("experiment.allow_unstable", allow_unstable ? 1.0 : 0.0);
+  return f.fields();
+}
+
+// The human a node's simulated master holds without a scene: human.fixed, or each axis's band
+// middle at its lowest force level (as the one-axis node's, simulated_sides.cpp).
+HumanImpedanceAxes holding_human(const HumanModelAxes& h, int n) {
+  if (h.kind == HumanKind::kFixed) return h.fixed;
+  HumanImpedanceAxes out;
+  if (h.kind != HumanKind::kBand || static_cast<int>(h.band_per_axis.size()) != n) return out;
+  out.mass_kg = Eigen::MatrixXd::Zero(n, n);
+  out.damping_Ns_per_m = Eigen::MatrixXd::Zero(n, n);
+  out.stiffness_N_per_m = Eigen::MatrixXd::Zero(n, n);
+  for (int i = 0; i < n; ++i) {
+    const HumanBand& b = h.band_per_axis[static_cast<std::size_t>(i)];
+    const double f = b.force_levels_N.empty() ? 0.0 : b.force_levels_N.front();
+    auto mid = [f](const ParameterBand& p) { return 0.5 * (p.lower.at(f) + p.upper.at(f)); };
+    out.mass_kg(i, i) = mid(b.mass_kg);
+    out.damping_Ns_per_m(i, i) = mid(b.damping_Ns_per_m);
+    out.stiffness_N_per_m(i, i) = mid(b.stiffness_N_per_m);
+  }
+  return out;
+}
+
+// One side's simulated device with the lockstep simulator's ideal sensors (lockstep_axes.hpp).
+device::SimDeviceAxesConfig ideal_device(const DeviceAxesParams& d, const KinematicsConfig& k,
+                                         std::chrono::nanoseconds period) {
+  device::SimDeviceAxesConfig c;
+  c.period = period;
+  c.plant.device = d;
+  c.kinematics = k.kind == KinematicsConfig::Kind::kFiveBar ? device::DeviceKinematics::kFiveBar
+                                                            : device::DeviceKinematics::kCartesian;
+  c.five_bar = k.five_bar;
+  c.five_bar_home_m = k.home_end_m;
+  c.quantize_position = false;
+  c.load_cell.noise_std_N = 0.0;
+  c.load_cell.bias_N = 0.0;
+  c.load_cell.range_N = 1e12;
+  c.amplifier.max_force_N = 1e12;
+  c.hold_scene_until_engaged = true;
+  return c;
+}
+
+// The master's human and the slave's environment: the scene's (as `teleopctl simulate`), else
+// a still hand and free space.
+void fill_axes_scene(const LoadedConfig& config, const AxesConfig& axes, Role role,
+                     device::SimDeviceAxesConfig& dev) {
+  const int n = axes.teleop.axes;
+  const bool scene = config.config.has_scene();
+  scene::AxesSceneSetup setup;
+  if (scene) setup = to_axes_scene_setup(config);  // names the scene's problems
+  if (role == Role::kMaster) {
+    device::SimHumanAxes h;
+    h.impedance = holding_human(axes.teleop.human, n);
+    h.direction = scene ? setup.push_direction : Eigen::VectorXd::Unit(n, 0);
+    h.profile = scene ? setup.push_profile : sim::ForceProfile::constant(0.0);
+    dev.human = h;
+  } else if (scene) {
+    dev.plant.planes = setup.slave_environment;
+  }
+}
+
+}  // namespace
+
+NodeSetup to_node_axes_setup(const LoadedConfig& config, Role role) {
+  if (role != Role::kMaster && role != Role::kSlave) {
+    throw ConfigError("node role must be master or slave");
+  }
+  const AxesConfig axes = to_axes_config(config);  // validates, names every field
+  const bool master = role == Role::kMaster;
+  const v1::SystemConfig& c = config.config;
+  const double rate_hz = axes.teleop.sample_rate_hz;
+  if (!(rate_hz >= 1.0 && rate_hz <= 100000.0)) {
+    throw ConfigError(config.source_name +
+                      ": sample_rate_hz: a node runs at 1 Hz to 100 kHz, got " +
+                      std::to_string(rate_hz));
+  }
+  NodeSetup out;
+  out.axes = axes.teleop.axes;
+  out.settings.role = role;
+  out.settings.period =
+      std::chrono::nanoseconds(static_cast<long long>(std::llround(1e9 / rate_hz)));
+  Problems p(config);
+  link_settings(p, c.link(), rate_hz, out.settings);
+  const v1::Side& own = master ? c.master() : c.slave();
+  const v1::Side& other = master ? c.slave() : c.master();
+  if (own.device().kind() == v1::USB) {
+    p.add(std::string(master ? "master" : "slave") + ".device.kind",
+          "a USB device is not supported with axes > 1 yet (use SIM)");
+  }
+  out.device_kind = device::DeviceKind::kSim;
+  out.endpoints = node_endpoints(own, other, role);
+  process_settings(p, master ? "master" : "slave", own.node(), out);
+  out.keys = node_keys(p, c.security(), own.node(), master);
+  p.throw_if_any();
+  out.settings.config_fingerprint =
+      fingerprint(axes_control_fields(axes, out.settings, c.experiment().allow_unstable()));
+
+  node::NodeAxesSettings& a = out.axes_settings;
+  try {
+    a.law = control::from_teleop_axes_params(axes.teleop);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(config.source_name + ": " + e.what());
+  }
+  a.role = role;
+  a.period = out.settings.period;
+  a.machine = out.settings.machine;
+  a.safe_ramp = out.settings.safe_ramp;
+  a.alignment = out.settings.alignment;
+  a.config_fingerprint = out.settings.config_fingerprint;
+  out.sim_axes =
+      ideal_device(master ? axes.teleop.master_device : axes.teleop.slave_device,
+                   master ? axes.master_kinematics : axes.slave_kinematics, out.settings.period);
+  fill_axes_scene(config, axes, role, out.sim_axes);
+  return out;
 }
 
 }  // namespace teleop::config

@@ -12,7 +12,9 @@
 #include "common/core/defaults.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/device/sim_device.hpp"
+#include "common/device/sim_device_axes.hpp"
 #include "common/node/node_core.hpp"
+#include "common/node/node_core_axes.hpp"
 #include "common/rt/periodic_loop.hpp"
 #include "common/transport/node_state_codec.hpp"
 
@@ -59,6 +61,13 @@ struct NodeSetup {
   // The node's own check of its configuration at start (control_fingerprint.hpp), filled by
   // the node process; reported in telemetry.
   std::optional<ConfigurationCheck> check{};
+  // SystemConfig.axes. With axes > 1 (to_node_axes_setup) the node runs NodeCoreAxes on a
+  // SimDeviceAxes: axes_settings and sim_axes hold its law and device; `settings` keeps the
+  // role, period, link timing, alignment, session and fingerprint (the same values as
+  // axes_settings) and its one-axis law and `sim` are unused.
+  int axes{1};
+  node::NodeAxesSettings axes_settings{};
+  device::SimDeviceAxesConfig sim_axes{};
 };
 
 // Default endpoints (loopback): master state 5560, slave state 5561, commands 5562/5563,
@@ -67,8 +76,20 @@ struct NodeSetup {
 
 // One node's part of compile_system(config) (system_compiler.hpp), which validates the whole
 // file once: `compile_system(config).node(role)`. For tools that need one node's endpoints; a
-// process that runs the system takes it from compile_system. Throws ConfigError naming the
-// field.
+// process that runs the system takes it from compile_system. With axes > 1 it is
+// to_node_axes_setup (below). Throws ConfigError naming the field.
 [[nodiscard]] NodeSetup to_node_setup(const LoadedConfig& config, transport::Role role);
+
+// A node's setup for a configuration with axes > 1 (docs/nodes.md "n axes live"): the n-axis
+// law from_teleop_axes_params(to_axes_config(config)) and a simulated SimDeviceAxes built as
+// `teleopctl simulate` builds its sides for n > 1 (to_axes_scene_setup: ideal sensors, the
+// devices' mass, damping and friction, the master's fixed human pushing with scene.human_force
+// along scene.human_force_direction, the slave in scene.environment_plane), held until the
+// node engages. Without a scene the human holds the handle without pushing (human.fixed, or
+// each axis's band middle at its lowest force level) and the slave is in free space. Link,
+// endpoints, keys, RT and process settings as to_node_setup; the fingerprint covers the n-axis
+// control fields. A USB device is refused (not supported with axes > 1 yet). Throws ConfigError
+// naming the field.
+[[nodiscard]] NodeSetup to_node_axes_setup(const LoadedConfig& config, transport::Role role);
 
 }  // namespace teleop::config

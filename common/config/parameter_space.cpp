@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cmath>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <unordered_map>
@@ -74,6 +75,9 @@ constexpr std::string_view kForceGainWhy = "force scaling of micro-surgery is ~1
 constexpr std::string_view kForceWhy = "a heavy slave arm gives ~1 kN";
 constexpr std::string_view kMsWhy = "at most a minute";
 constexpr std::string_view kPositionWhy = "a workspace is < 1 m";
+// A five-bar's links, m: 1 mm (a micro-manipulator's) to 10 m.
+constexpr double kMinLink = 1e-3;
+constexpr std::string_view kLinkWhy = "a link of 1 mm to 10 m";
 
 const std::array kRules{
     NamedRule{"teleop.v1.SystemConfig.sample_rate_hz",
@@ -178,6 +182,42 @@ const std::array kRules{
     NamedRule{"teleop.v1.ParameterUpdate.slave_fixture_position_m",
               symmetric(kMaxPosition, "m", kPositionWhy)},
     NamedRule{"teleop.v1.ParameterUpdate.ramp_ms", non_negative(kMaxMs, "ms", kMsWhy)},
+    // Several axes (issue 18): element by element here; sizes, symmetry, definiteness, unit
+    // normals and the five-bar's home pose are axes_config.cpp's.
+    NamedRule{"teleop.v1.SystemConfig.axes", at_least(1.0, 6.0, "", "1 to 6 task-space axes")},
+    NamedRule{"teleop.v1.Device.mass_matrix_kg", symmetric(kMaxMass, "kg", kDeviceMassWhy)},
+    NamedRule{"teleop.v1.Device.damping_Ns_per_m_per_axis",
+              non_negative(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Device.coulomb_N_per_axis", non_negative(kMaxForce, "N", kForceWhy)},
+    NamedRule{"teleop.v1.FiveBar.base_separation_m", non_negative(kMaxPosition, "m", kPositionWhy)},
+    // A link of 1 mm at least: a vanishing link makes the linkage singular (its joint moves the
+    // end point by nothing) whatever its transmission angles say.
+    NamedRule{"teleop.v1.FiveBar.proximal_m", at_least(kMinLink, kMaxPosition, "m", kLinkWhy)},
+    NamedRule{"teleop.v1.FiveBar.distal_m", at_least(kMinLink, kMaxPosition, "m", kLinkWhy)},
+    NamedRule{"teleop.v1.FiveBar.home_joint_rad",
+              symmetric(2.0 * std::numbers::pi, "rad", "one turn either way")},
+    NamedRule{"teleop.v1.FiveBar.min_singularity_distance",
+              positive(1.0, "", "|sin| of a transmission angle")},
+    NamedRule{"teleop.v1.Plane.normal", symmetric(1e6, "", "a direction, normalised on load")},
+    NamedRule{"teleop.v1.Scene.human_force_direction",
+              symmetric(1e6, "", "a direction, normalised on load")},
+    NamedRule{"teleop.v1.Plane.offset_m", symmetric(kMaxPosition, "m", kPositionWhy)},
+    NamedRule{"teleop.v1.Plane.stiffness_N_per_m",
+              non_negative(kMaxStiffness, "N/m", kStiffnessWhy)},
+    NamedRule{"teleop.v1.Gains.kpm_per_axis", non_negative(kMaxStiffness, "N/m", kStiffnessWhy)},
+    NamedRule{"teleop.v1.Gains.kps_per_axis", non_negative(kMaxStiffness, "N/m", kStiffnessWhy)},
+    NamedRule{"teleop.v1.Gains.kdm_per_axis", non_negative(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kds_per_axis", non_negative(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kvm_per_axis", non_negative(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kvs_per_axis", non_negative(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kfm_per_axis", non_negative(kMaxForceGain, "", kForceGainWhy)},
+    NamedRule{"teleop.v1.Gains.kpm_matrix", symmetric(kMaxStiffness, "N/m", kStiffnessWhy)},
+    NamedRule{"teleop.v1.Gains.kps_matrix", symmetric(kMaxStiffness, "N/m", kStiffnessWhy)},
+    NamedRule{"teleop.v1.Gains.kdm_matrix", symmetric(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kds_matrix", symmetric(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kvm_matrix", symmetric(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kvs_matrix", symmetric(kMaxDamping, "Ns/m", kDampingWhy)},
+    NamedRule{"teleop.v1.Gains.kfm_matrix", symmetric(kMaxForceGain, "", kForceGainWhy)},
 };
 
 const std::unordered_map<std::string, const FieldRule*>& rule_index() {
@@ -338,9 +378,35 @@ std::vector<FieldProblem> check_fields(const pb::Message& message) {
   return out;
 }
 
-std::string check_parameter_update(const teleop::v1::ParameterUpdate& update) {
+std::vector<std::string> n_axis_gain_fields(const teleop::v1::Gains& gains) {
+  std::vector<std::string> out;
+  const pb::Descriptor* d = teleop::v1::Gains::descriptor();
+  const pb::Reflection* r = gains.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f->is_repeated() && r->FieldSize(gains, f) > 0) out.push_back("gains." + f->name());
+  }
+  return out;
+}
+
+std::string check_one_axis_gains(const teleop::v1::Gains& gains) {
   std::string text;
+  for (const std::string& name : n_axis_gain_fields(gains)) {
+    if (!text.empty()) text += "; ";
+    text += name + ": an n-axis field; a live change is one axis (the gains' scalars)";
+  }
+  return text;
+}
+
+std::string check_parameter_update(const teleop::v1::ParameterUpdate& update) {
+  // A live change is one axis (the nodes run one): its gains are the scalars. A per-axis list or
+  // a matrix would be dropped by the node without a word; refused, one line a field.
+  std::string text = check_one_axis_gains(update.gains());
+  const std::vector<std::string> n_axis = n_axis_gain_fields(update.gains());
   for (const FieldProblem& p : check_fields(update)) {
+    bool in_n_axis = false;
+    for (const std::string& name : n_axis) in_n_axis = in_n_axis || p.path.starts_with(name + "[");
+    if (in_n_axis) continue;
     // Name the fields as the configuration does (gains.kps, not update.gains.kps).
     if (!text.empty()) text += "; ";
     text += p.path + ": " + p.message;

@@ -58,6 +58,11 @@ struct FieldProblem {
 // a RETUNE.
 [[nodiscard]] std::string check_parameter_update(const teleop::v1::ParameterUpdate& update);
 
+// "" when `gains` holds only the one-axis scalars, else one line per per-axis list or matrix
+// given, naming it: a live change is one axis (the nodes run one), and the supervisor and the
+// nodes refuse such fields rather than drop them.
+[[nodiscard]] std::string check_one_axis_gains(const teleop::v1::Gains& gains);
+
 // "" when `endpoint` can be bound (tcp://HOST:PORT, PORT 1-65535; ipc://PATH; inproc://NAME),
 // else the reason.
 [[nodiscard]] std::string check_endpoint(std::string_view endpoint);

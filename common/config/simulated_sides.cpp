@@ -148,6 +148,11 @@ void check_equilibrium(const v1::Scene& s, HumanKind human, SceneChecks& checks)
 
 }  // namespace
 
+sim::ForceProfile scene_force_profile(const v1::ForceProfile& profile, SceneChecks& checks,
+                                      const std::string& path) {
+  return to_profile(profile, checks, path);
+}
+
 void SceneChecks::positive(const std::string& path, double v) {
   if (!(v > 0.0)) add(path, "must be > 0, got " + std::to_string(v));
 }

@@ -49,6 +49,9 @@ struct SimulatedSides {
 
 // scene.duration_s and scene.output_rate_hz, when present, are > 0.
 void check_scene_times(const teleop::v1::Scene& scene, SceneChecks& checks);
+// A scene's force profile (scene.human_force as `path`), its problems named under `path`.
+[[nodiscard]] sim::ForceProfile scene_force_profile(const teleop::v1::ForceProfile& profile,
+                                                    SceneChecks& checks, const std::string& path);
 
 // One side's sensors and actuator; the analyser's assumptions when `ideal`. A USB kind is a
 // problem for a scene (check_kind), not for a node's stand-in.

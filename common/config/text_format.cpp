@@ -187,12 +187,27 @@ std::string describe_location(const LoadedConfig& config,
 
 // "FILE:LINE:COL" of the field (or of the nearest enclosing section written in the file), or
 // "--set ..." when an override set the field or created a section around it.
+namespace {
+
+// Whether an override of `set_path` changed the value at `path`: the same field, one inside
+// it (".x", or an element "[i]"), or an element of it (the override set `path[i]`, so the
+// whole of `path`, e.g. a matrix that is no longer symmetric, is the override's doing).
+bool overrides(const std::string& set_path, const std::string& path) {
+  const auto below = [](const std::string& longer, const std::string& prefix,
+                        std::string_view separators) {
+    return longer.size() > prefix.size() && longer.starts_with(prefix) &&
+           separators.find(longer[prefix.size()]) != std::string_view::npos;
+  };
+  return path == set_path || below(path, set_path, ".[") || below(set_path, path, "[");
+}
+
+}  // namespace
+
 std::string origin_of(const LoadedConfig& config, const FieldPath& path) {
   const std::string plain = dotted(path, false);
+  const std::string indexed = dotted(path, true);
   for (auto it = config.overridden.rbegin(); it != config.overridden.rend(); ++it) {
-    const std::string& set_path = it->first;
-    if (plain == set_path || (plain.size() > set_path.size() && plain.starts_with(set_path) &&
-                              plain[set_path.size()] == '.')) {
+    if (overrides(it->first, plain) || overrides(it->first, indexed)) {
       return "--set " + it->second;
     }
   }

@@ -3,6 +3,7 @@
 #include <google/protobuf/message.h>
 
 #include <cctype>
+#include <charconv>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -151,6 +152,25 @@ void set_scalar(pb::Message& message, const pb::FieldDescriptor* field, const Sc
       value);
 }
 
+// Replaces element `index` of a repeated scalar.
+void set_element(pb::Message& message, const pb::FieldDescriptor* field, int index,
+                 const ScalarValue& value) {
+  const pb::Reflection* r = message.GetReflection();
+  std::visit(
+      Overloaded{
+          [&](double v) { r->SetRepeatedDouble(&message, field, index, v); },
+          [&](float v) { r->SetRepeatedFloat(&message, field, index, v); },
+          [&](std::int32_t v) { r->SetRepeatedInt32(&message, field, index, v); },
+          [&](std::int64_t v) { r->SetRepeatedInt64(&message, field, index, v); },
+          [&](std::uint32_t v) { r->SetRepeatedUInt32(&message, field, index, v); },
+          [&](std::uint64_t v) { r->SetRepeatedUInt64(&message, field, index, v); },
+          [&](bool v) { r->SetRepeatedBool(&message, field, index, v); },
+          [&](const pb::EnumValueDescriptor* v) { r->SetRepeatedEnum(&message, field, index, v); },
+          [&](const std::string& v) { r->SetRepeatedString(&message, field, index, v); },
+      },
+      value);
+}
+
 void collect_set_fields(const pb::Message& message, const std::string& prefix,
                         std::vector<FieldAssignment>& out) {
   const pb::Reflection* r = message.GetReflection();
@@ -253,14 +273,37 @@ std::string override_path(std::string_view assignment) {
   return path;
 }
 
-// The whole path of an override, resolved against the schema before anything changes.
+// "plane[2]" -> ("plane", 2); "plane" -> ("plane", -1). An index is a whole number >= 0.
+std::pair<std::string, int> split_index(const std::string& quoted, const std::string& so_far,
+                                        const std::string& segment) {
+  const auto bracket = segment.find('[');
+  if (bracket == std::string::npos) return {segment, -1};
+  const std::string name(trim(std::string_view(segment).substr(0, bracket)));
+  const std::string_view digits =
+      trim(std::string_view(segment).substr(bracket + 1, segment.size() - bracket - 1));
+  int index = -1;
+  const bool closed = segment.ends_with(']') && digits.size() > 1;
+  const std::string_view number = closed ? trim(digits.substr(0, digits.size() - 1)) : digits;
+  const auto result = std::from_chars(number.data(), number.data() + number.size(), index);
+  if (!closed || number.empty() || result.ec != std::errc{} ||
+      result.ptr != number.data() + number.size() || index < 0) {
+    throw_override_error(
+        quoted, so_far.empty() ? name : so_far + "." + name,
+        "bad index in '" + segment + "': expected " + name + "[N], N a whole number from 0");
+  }
+  return {name, index};
+}
+
+// The whole path of an override, resolved against the schema before anything changes. A
+// repeated field takes an element index, `plane[1].offset_m` or `mass_matrix_kg[4]`; without
+// one a repeated scalar is replaced whole by a list.
 FieldPath resolve_override_path(const std::string& quoted, std::string_view path_text) {
   FieldPath path;
   const pb::Descriptor* type = teleop::v1::SystemConfig::descriptor();
   const std::vector<std::string_view> segments = split(path_text, '.');
   for (std::size_t i = 0; i < segments.size(); ++i) {
-    const std::string segment(trim(segments[i]));
     const std::string so_far = dotted(path);
+    const auto [segment, index] = split_index(quoted, so_far, std::string(trim(segments[i])));
     const std::string here = so_far.empty() ? segment : so_far + "." + segment;
     if (type == nullptr) {
       throw_override_error(quoted, so_far, "is a scalar, it has no field '" + segment + "'");
@@ -274,14 +317,45 @@ FieldPath resolve_override_path(const std::string& quoted, std::string_view path
           "unknown field '" + segment + "' in " + type->full_name() + suggestion(type, segment));
     }
     const bool last = i + 1 == segments.size();
-    if (!last && field->is_repeated()) {
-      throw_override_error(quoted, here,
-                           "is a repeated section; overriding inside it is not supported");
+    if (index >= 0 && !field->is_repeated()) {
+      throw_override_error(quoted, here, "is not repeated: it takes no [index]");
     }
-    path.push_back({field, -1});
+    if (!last && field->is_repeated() && index < 0) {
+      throw_override_error(quoted, here,
+                           "is a repeated section: name the element, e.g. " + here + "[0]." +
+                               std::string(trim(segments[i + 1])));
+    }
+    path.push_back({field, index});
     type = field->message_type();
   }
   return path;
+}
+
+// Every element index of `path` names an existing element or the one after the last (which
+// the override adds): checked before anything changes.
+void check_indices(const LoadedConfig& config, const FieldPath& path, const std::string& quoted) {
+  const pb::Message* message = &config.config;  // nullptr: inside an element still to be added
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    const Step& step = path[i];
+    const int size = message == nullptr || !step.field->is_repeated()
+                         ? 0
+                         : message->GetReflection()->FieldSize(*message, step.field);
+    if (step.index > size) {
+      const FieldPath field(path.begin(), path.begin() + static_cast<std::ptrdiff_t>(i + 1));
+      const std::string name = dotted(field, false);
+      throw_override_error(quoted, dotted(field),
+                           "no such element: " + name + " has " + std::to_string(size) +
+                               " (give [" + std::to_string(size) + "] to add one)");
+    }
+    if (i + 1 == path.size() || message == nullptr) continue;
+    const pb::Reflection* r = message->GetReflection();
+    if (step.index >= 0) {
+      message =
+          step.index < size ? &r->GetRepeatedMessage(*message, step.field, step.index) : nullptr;
+    } else {
+      message = &r->GetMessage(*message, step.field);
+    }
+  }
 }
 
 // The value of an override, parsed before anything changes: a section's new contents, or the
@@ -294,9 +368,12 @@ struct OverrideValue {
 std::unique_ptr<pb::Message> parse_override_section(const std::string& quoted,
                                                     const std::string& path_string,
                                                     const pb::FieldDescriptor* target,
-                                                    std::string_view value_text) {
-  if (target->is_repeated())
-    throw_override_error(quoted, path_string, "is a repeated section; not supported by --set");
+                                                    std::string_view value_text, bool element) {
+  if (target->is_repeated() && !element) {
+    throw_override_error(
+        quoted, path_string,
+        "is a repeated section: set one element, e.g. " + path_string + "[0]={...}");
+  }
   if (!value_text.starts_with('{') || !value_text.ends_with('}')) {
     throw_override_error(quoted, path_string,
                          "is a section (" + target->message_type()->full_name() +
@@ -323,11 +400,13 @@ std::unique_ptr<pb::Message> parse_override_section(const std::string& quoted,
 }
 
 OverrideValue parse_override_value(const std::string& quoted, const std::string& path_string,
-                                   const pb::FieldDescriptor* target, std::string_view value_text) {
+                                   const Step& target_step, std::string_view value_text) {
   OverrideValue out;
+  const pb::FieldDescriptor* target = target_step.field;
+  const bool element = target_step.index >= 0;
   if (target->cpp_type() == pb::FieldDescriptor::CPPTYPE_MESSAGE) {
-    out.section = parse_override_section(quoted, path_string, target, value_text);
-  } else if (target->is_repeated()) {
+    out.section = parse_override_section(quoted, path_string, target, value_text, element);
+  } else if (target->is_repeated() && !element) {
     if (!value_text.empty()) {
       const std::vector<std::string_view> items = split(value_text, ',');
       for (std::size_t i = 0; i < items.size(); ++i) {
@@ -352,6 +431,38 @@ OverrideValue parse_override_value(const std::string& quoted, const std::string&
   return out;
 }
 
+// The forms of one quantity (issue 18): `x` (every axis), `x_per_axis` and `x_matrix`
+// (mass_kg and mass_matrix_kg; coulomb_friction_N and coulomb_N_per_axis) give one value three
+// ways, and a section may hold only one of them. An override replaces the value whichever form
+// the file gave it in, so setting one form whole clears the others in its section.
+std::string quantity_of(const std::string& field_name) {
+  if (field_name == "coulomb_N_per_axis") return "coulomb_friction_N";
+  std::string q = field_name;
+  const std::string per_axis = "_per_axis";
+  if (q.size() > per_axis.size() && q.ends_with(per_axis)) q.resize(q.size() - per_axis.size());
+  const std::string matrix = "_matrix";
+  if (const auto at = q.find(matrix); at != std::string::npos) q.erase(at, matrix.size());
+  return q;
+}
+
+void clear_other_forms(LoadedConfig& config, pb::Message& message, const FieldPath& path,
+                       const std::string& quoted) {
+  const pb::FieldDescriptor* target = path.back().field;
+  const std::string quantity = quantity_of(target->name());
+  const pb::Descriptor* d = message.GetDescriptor();
+  const pb::Reflection* r = message.GetReflection();
+  for (int i = 0; i < d->field_count(); ++i) {
+    const pb::FieldDescriptor* f = d->field(i);
+    if (f == target || quantity_of(f->name()) != quantity) continue;
+    const bool given = f->is_repeated() ? r->FieldSize(message, f) > 0 : r->HasField(message, f);
+    if (!given) continue;
+    r->ClearField(&message, f);
+    FieldPath other = path;
+    other.back() = Step{f, -1};
+    config.overridden.emplace_back(dotted(other), quoted);
+  }
+}
+
 // Walks down, creating sections (and so switching oneofs) as needed, and sets the value.
 void write_override(LoadedConfig& config, const FieldPath& path, const OverrideValue& value,
                     const std::string& quoted) {
@@ -359,19 +470,38 @@ void write_override(LoadedConfig& config, const FieldPath& path, const OverrideV
   FieldPath walked;
   for (std::size_t i = 0; i + 1 < path.size(); ++i) {
     const pb::FieldDescriptor* field = path[i].field;
+    const pb::Reflection* r = message->GetReflection();
     walked.push_back(path[i]);
-    if (!message->GetReflection()->HasField(*message, field)) {
-      config.overridden.emplace_back(dotted(walked), quoted);
+    if (path[i].index >= 0) {  // an element (check_indices: existing, or the next one)
+      const bool exists = path[i].index < r->FieldSize(*message, field);
+      if (!exists) config.overridden.emplace_back(dotted(walked), quoted);
+      message = exists ? r->MutableRepeatedMessage(message, field, path[i].index)
+                       : r->AddMessage(message, field);
+      continue;
     }
-    message = message->GetReflection()->MutableMessage(message, field);
+    if (!r->HasField(*message, field)) config.overridden.emplace_back(dotted(walked), quoted);
+    message = r->MutableMessage(message, field);
   }
-  const pb::FieldDescriptor* target = path.back().field;
+  const Step& target = path.back();
+  if (target.index < 0) clear_other_forms(config, *message, path, quoted);
   const pb::Reflection* reflection = message->GetReflection();
+  const bool append =
+      target.index >= 0 && target.index == reflection->FieldSize(*message, target.field);
   if (value.section) {
-    reflection->MutableMessage(message, target)->CopyFrom(*value.section);
+    pb::Message* section =
+        target.index < 0 ? reflection->MutableMessage(message, target.field)
+        : append         ? reflection->AddMessage(message, target.field)
+                         : reflection->MutableRepeatedMessage(message, target.field, target.index);
+    section->CopyFrom(*value.section);
+  } else if (target.index >= 0) {
+    if (append) {
+      set_scalar(*message, target.field, value.values.front());
+    } else {
+      set_element(*message, target.field, target.index, value.values.front());
+    }
   } else {
-    if (target->is_repeated()) reflection->ClearField(message, target);
-    for (const ScalarValue& v : value.values) set_scalar(*message, target, v);
+    if (target.field->is_repeated()) reflection->ClearField(message, target.field);
+    for (const ScalarValue& v : value.values) set_scalar(*message, target.field, v);
   }
   config.overridden.emplace_back(dotted(path), quoted);
 }
@@ -417,8 +547,8 @@ void apply_override(LoadedConfig& config, std::string_view assignment) {
     throw_override_error(quoted, "", "empty path; expected PATH=VALUE, e.g. gains.kps=800");
   // Resolve the whole path and parse the value before changing anything.
   const FieldPath path = resolve_override_path(quoted, path_text);
-  const OverrideValue value =
-      parse_override_value(quoted, dotted(path), path.back().field, value_text);
+  check_indices(config, path, quoted);
+  const OverrideValue value = parse_override_value(quoted, dotted(path), path.back(), value_text);
   write_override(config, path, value, quoted);
 }
 

@@ -15,6 +15,8 @@
 namespace teleop {
 
 inline constexpr int kMaxAxes = 6;
+// Fixture planes a side may have (the law holds them in fixed storage: control::kMaxPlanes).
+inline constexpr int kMaxPlanesPerSide = 8;
 
 // A device as felt at the handle in task space: M v' + B v + C sgn(v) = F (Vlachos-Papadopoulos
 // eqs. 5-6 with the kinematics folded into M). B and C are diagonal (per task axis).

@@ -96,7 +96,7 @@ class HapticDevice {
 enum class DeviceKind { kSim, kUsb };
 
 struct SimDeviceConfig;  // common/device/sim_device.hpp
-struct UsbDeviceConfig;  // common/device/usb_device.hpp
+struct UsbDeviceConfig;  // common/device/usb_host_link.hpp (included by usb_device.hpp)
 
 struct MakeDeviceResult {
   std::unique_ptr<HapticDevice> device{};

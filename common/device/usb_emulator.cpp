@@ -77,6 +77,11 @@ sim::Plant make_plant(const EmulatorConfig& c) {
   const char* bad = c.scaling.invalid_field();
   require(*bad == '\0', bad);
   require(std::isfinite(c.initial_position_m), "initial_position_m must be finite");
+  require(c.protocol_version == kProtocolVersion || c.protocol_version == kProtocolVersion2,
+          "protocol_version must be 1 or 2");
+  require(c.channels >= 1 && c.channels <= kMaxChannels, "channels must be in [1, 6]");
+  require(c.channels == 1 || c.protocol_version == kProtocolVersion2,
+          "channels above 1 need protocol_version 2");
   require(!c.amplifier_limit_N || (std::isfinite(*c.amplifier_limit_N) && *c.amplifier_limit_N > 0),
           "amplifier_limit_N must be positive and finite");
   sim::Plant plant(c.plant, c.period);
@@ -115,6 +120,11 @@ Emulator::Emulator(const EmulatorConfig& config, std::unique_ptr<Transport> tran
       load_cell_(load_cell_params(config), config.seed),
       amplifier_limit_N_(config.amplifier_limit_N.value_or(config.scaling.actuator_full_scale_N)) {
   require(transport_ != nullptr, "transport must not be null");
+  for (std::size_t i = 1; i < config_.channels; ++i) {
+    extra_plants_.push_back(plant_);
+    extra_load_cells_.emplace_back(load_cell_params(config), config.seed + i);
+  }
+  if (config_.channels > 1) report_version_ = kProtocolVersion2;
   // What the device would report at power-up; the first report goes out after the first step.
   fill_report(ReportFlags::kWatchdogTripped);
 }
@@ -137,7 +147,18 @@ void Emulator::process_commands() {
 
 void Emulator::handle(std::span<const std::uint8_t> bytes) {
   CommandPacket c;
-  PacketError error = decode(bytes, c);
+  // Version 2 (when spoken): the whole command; channel 0 also in `c`, as version 1's.
+  CommandPacketV2 all;
+  const bool v2 = config_.protocol_version == kProtocolVersion2 && bytes.size() >= 3 &&
+                  bytes[2] == kProtocolVersion2;
+  PacketError error = v2 ? decode_v2(bytes, all) : decode(bytes, c);
+  if (v2 && error == PacketError::kNone) {
+    if (all.channels != config_.channels) error = PacketError::kChannelMismatch;
+    c.sequence = all.sequence;
+    c.watchdog_ms = all.watchdog_ms;
+    c.flags = all.flags;
+    c.actuator_dac = all.actuator_dac[0];
+  }
   std::uint32_t lost = 0;
   if (error == PacketError::kNone) {
     if ((c.flags & CommandFlags::kResync) != 0) sequence_.reset();
@@ -154,6 +175,8 @@ void Emulator::handle(std::span<const std::uint8_t> bytes) {
   stats_.commands_accepted += 1;
   stats_.commands_lost += lost;
   command_ = c;
+  channel_dac_ = v2 ? all.actuator_dac : std::array<std::int16_t, kMaxChannels>{};
+  report_version_ = v2 ? kProtocolVersion2 : kProtocolVersion;
   last_command_time_ = time_;
   watchdog_ = std::chrono::milliseconds{c.watchdog_ms};
   // Only a deliberate disabled command re-arms: a host that stalled and resumes mid-stream
@@ -187,10 +210,68 @@ void Emulator::step(std::chrono::nanoseconds period) {
     plant_.set_period(period);
   }
   plant_.step(output_force_N_, external_force_N_);
+  output_forces_N_[0] = output_force_N_;
+  flags |= step_extra_channels(drive, period);
   time_ += period;
   report_sequence_ += 1;
   fill_report(flags);
+  send_report();
+}
 
+std::uint16_t Emulator::step_extra_channels(bool drive, std::chrono::nanoseconds period) {
+  std::uint16_t flags = 0;
+  const Scaling& s = config_.scaling;
+  for (std::size_t i = 1; i < config_.channels; ++i) {
+    sim::Plant& plant = extra_plants_[i - 1];
+    const std::int16_t dac = drive ? channel_dac_[i] : std::int16_t{0};
+    const double requested_N = dac_to_force_N(dac, s);
+    const double out_N = std::clamp(requested_N, -amplifier_limit_N_, amplifier_limit_N_);
+    if (dac == kRawFullScale || dac == -kRawFullScale || out_N != requested_N) {
+      flags |= ReportFlags::kAmplifierSaturated;
+    }
+    output_forces_N_[i] = out_N;
+    if (std::chrono::duration<double>(period).count() != plant.period_s()) plant.set_period(period);
+    plant.step(out_N, external_forces_N_[i]);
+    const sim::PlantOutput& o = plant.output();
+    const double true_force_N =
+        config_.load_cell_measures_human ? o.human_force_N : o.environment_force_N;
+    const double adc = std::round(extra_load_cells_[i - 1].measure(true_force_N).force_N /
+                                  s.load_cell_N_per_count());
+    constexpr double kRail = kRawFullScale;
+    if (adc >= kRail || adc <= -kRail) flags |= ReportFlags::kLoadCellClipped;
+    report_v2_.load_cell_adc[i] = static_cast<std::int16_t>(std::clamp(adc, -kRail, kRail));
+    report_v2_.encoder_counts[i] = static_cast<std::int32_t>(
+        std::llround(plant.state().position_m / s.position_m_per_count()));
+  }
+  return flags;
+}
+
+void Emulator::send_report() {
+  if (report_version_ == kProtocolVersion2) {
+    // Channel 0 and the common fields are version 1's report; the flags fit one byte (bits 0-5).
+    report_v2_.sequence = report_.sequence;
+    report_v2_.device_time_us = report_.device_time_us;
+    report_v2_.flags = static_cast<std::uint8_t>(report_.flags & ReportFlags::kKnown);
+    report_v2_.channels = static_cast<std::uint8_t>(config_.channels);
+    report_v2_.last_command_sequence = report_.last_command_sequence;
+    report_v2_.commands_rejected = report_.commands_rejected;
+    report_v2_.encoder_counts[0] = report_.encoder_counts;
+    report_v2_.load_cell_adc[0] = report_.load_cell_adc;
+    PacketBuffer buffer{};
+    std::size_t size = 0;
+    if (encode(report_v2_, buffer, size) != PacketError::kNone) {
+      stats_.report_send_failures += 1;  // unreachable: every field is built in range
+      return;
+    }
+    if (transport_
+            ->send(std::span<const std::uint8_t>(buffer.data(), size), std::chrono::milliseconds{0})
+            .ok()) {
+      stats_.reports_sent += 1;
+    } else {
+      stats_.report_send_failures += 1;
+    }
+    return;
+  }
   ReportBytes bytes{};
   if (encode(report_, bytes) != PacketError::kNone) {
     stats_.report_send_failures += 1;  // unreachable: every field is built in range
@@ -201,6 +282,18 @@ void Emulator::step(std::chrono::nanoseconds period) {
   } else {
     stats_.report_send_failures += 1;
   }
+}
+
+void Emulator::set_external_force_N(std::size_t channel, double force_N) noexcept {
+  if (channel == 0) {
+    external_force_N_ = force_N;
+  } else if (channel < config_.channels) {
+    external_forces_N_[channel] = force_N;
+  }
+}
+
+const sim::Plant& Emulator::plant(std::size_t channel) const noexcept {
+  return channel == 0 || channel > extra_plants_.size() ? plant_ : extra_plants_[channel - 1];
 }
 
 void Emulator::fill_report(std::uint16_t flags) {

@@ -4,10 +4,12 @@
 // only by step(period), so its watchdog is measured in emulator time, never by sleeping.
 #pragma once
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <vector>
 
 #include "common/device/usb_protocol.hpp"
 #include "common/device/usb_transport.hpp"
@@ -50,6 +52,15 @@ struct EmulatorConfig {
   // false: the load cell reads the environment force F_e (slave); true: the human's F_h (master).
   bool load_cell_measures_human{false};
   double initial_position_m{0.0};
+  // The newest protocol version the firmware speaks: 1 (a version-1-only device: any other
+  // version is refused as bad_version) or 2 (docs/usb-protocol.md "Version 2: n channels": it
+  // takes commands of both and answers each host in the version of its newest accepted command;
+  // before any, v1 when channels = 1, else v2).
+  std::uint8_t protocol_version{kProtocolVersion};
+  // n in [1, 6] (more than 1 needs protocol_version 2): independent channels, each a copy of
+  // `plant` with its own load cell (seed + channel). Channel 0 is version 1's device; a v1 host
+  // drives channel 0 only (the others output 0 N).
+  std::size_t channels{1};
 };
 
 class Emulator {
@@ -72,6 +83,8 @@ class Emulator {
   void set_fault(bool fault) noexcept { fault_ = fault; }
   // Exogenous force on the handle along +x (a human's push), held over the following steps.
   void set_external_force_N(double force_N) noexcept { external_force_N_ = force_N; }
+  // The same on one channel (channel 0 is the one above); channel < channels().
+  void set_external_force_N(std::size_t channel, double force_N) noexcept;
 
   struct Stats {
     std::uint64_t commands_accepted{0};
@@ -90,10 +103,24 @@ class Emulator {
   [[nodiscard]] const ReportPacket& last_report() const noexcept { return report_; }
   [[nodiscard]] const sim::Plant& plant() const noexcept { return plant_; }
 
+  // Version 2. channel < channels() (channel 0: the accessors above).
+  [[nodiscard]] std::size_t channels() const noexcept { return config_.channels; }
+  [[nodiscard]] const sim::Plant& plant(std::size_t channel) const noexcept;
+  [[nodiscard]] double output_force_N(std::size_t channel) const noexcept {
+    return output_forces_N_[channel];
+  }
+  // The version the emulator reports in (that of the newest accepted command).
+  [[nodiscard]] std::uint8_t report_version() const noexcept { return report_version_; }
+  [[nodiscard]] const ReportPacketV2& last_report_v2() const noexcept { return report_v2_; }
+
  private:
   void handle(std::span<const std::uint8_t> bytes);
   // Samples the sensors into report_ (sequence, time, flags as given).
   void fill_report(std::uint16_t flags);
+  // Channels 1..n-1 over one period: drive, plant, sensors into report_v2_; returns the flags
+  // (saturated, clipped) they add.
+  std::uint16_t step_extra_channels(bool drive, std::chrono::nanoseconds period);
+  void send_report();
 
   EmulatorConfig config_;
   std::unique_ptr<Transport> transport_;
@@ -117,6 +144,14 @@ class Emulator {
   std::uint32_t report_sequence_{0};
   ReportPacket report_{};
   Stats stats_{};
+  // Version 2: channels 1..n-1 (index i - 1), their commands and outputs.
+  std::vector<sim::Plant> extra_plants_{};
+  std::vector<sim::LoadCell> extra_load_cells_{};
+  std::array<std::int16_t, kMaxChannels> channel_dac_{};
+  std::array<double, kMaxChannels> external_forces_N_{};  // [0] unused: external_force_N_
+  std::array<double, kMaxChannels> output_forces_N_{};
+  std::uint8_t report_version_{kProtocolVersion};
+  ReportPacketV2 report_v2_{};
 };
 
 }  // namespace teleop::device::usb

@@ -92,6 +92,70 @@ bool report_fields_valid(const ReportPacket& p) noexcept {
          p.actuator_dac != kInvalidRaw;
 }
 
+// ---- version 2 ----
+
+bool channels_valid(std::size_t n) noexcept { return n >= 1 && n <= kMaxChannels; }
+
+void put_header_v2(std::span<std::uint8_t> out, PacketType type, std::uint8_t channels) noexcept {
+  put_u16(out, 0, kMagic);
+  put_u8(out, 2, kProtocolVersion2);
+  put_u8(out, 3, static_cast<std::uint8_t>(type));
+  put_u8(out, 4, channels);
+}
+
+// The frozen bytes, n, the size n gives, then the CRC; `channels` is n when kNone.
+PacketError check_frame_v2(std::span<const std::uint8_t> in, PacketType type,
+                           std::size_t& channels) noexcept {
+  if (in.size() < 4) return PacketError::kTruncated;
+  if (get_u16(in, 0) != kMagic) return PacketError::kBadMagic;
+  if (in[2] != kProtocolVersion2) return PacketError::kBadVersion;
+  if (in[3] != static_cast<std::uint8_t>(type)) return PacketError::kBadType;
+  if (in.size() < 5) return PacketError::kTruncated;
+  if (!channels_valid(in[4])) return PacketError::kBadChannels;
+  const std::size_t size =
+      type == PacketType::kCommand ? command_size_v2(in[4]) : report_size_v2(in[4]);
+  if (in.size() < size) return PacketError::kTruncated;
+  if (in.size() > size) return PacketError::kOversized;
+  if (crc32(in.first(size - 4)) != get_u32(in, size - 4)) return PacketError::kBadCrc;
+  channels = in[4];
+  return PacketError::kNone;
+}
+
+bool command_fields_valid(const CommandPacketV2& p) noexcept {
+  if (!(p.watchdog_ms >= kMinWatchdogMs && p.watchdog_ms <= kMaxWatchdogMs &&
+        (p.flags & ~CommandFlags::kKnown) == 0 &&
+        (p.flags & (CommandFlags::kEnable | CommandFlags::kResync)) !=
+            (CommandFlags::kEnable | CommandFlags::kResync))) {
+    return false;
+  }
+  for (std::size_t i = 0; i < p.channels; ++i) {
+    if (p.actuator_dac[i] == kInvalidRaw) return false;
+  }
+  return true;
+}
+
+bool report_fields_valid(const ReportPacketV2& p) noexcept {
+  if ((p.flags & ~ReportFlags::kKnown) != 0) return false;
+  for (std::size_t i = 0; i < p.channels; ++i) {
+    if (p.load_cell_adc[i] == kInvalidRaw) return false;
+  }
+  return true;
+}
+
+// Command v2 offsets (docs/usb-protocol.md "Version 2: n channels").
+constexpr std::size_t kCmdFlags = 5;
+constexpr std::size_t kCmdWatchdog = 6;
+constexpr std::size_t kCmdSequence = 8;
+constexpr std::size_t kCmdDac = 12;  // + 2 i
+// Report v2 offsets.
+constexpr std::size_t kRepFlags = 5;
+constexpr std::size_t kRepRejected = 6;
+constexpr std::size_t kRepSequence = 8;
+constexpr std::size_t kRepLastCommand = 12;
+constexpr std::size_t kRepTime = 16;
+constexpr std::size_t kRepChannel = 24;  // + 6 i: encoder i32, then load cell i16
+constexpr std::size_t kRepChannelStride = 6;
+
 }  // namespace
 
 const char* to_string(PacketError error) noexcept {
@@ -118,6 +182,10 @@ const char* to_string(PacketError error) noexcept {
       return "duplicate";
     case PacketError::kOutOfOrder:
       return "out_of_order";
+    case PacketError::kBadChannels:
+      return "bad_channels";
+    case PacketError::kChannelMismatch:
+      return "channel_mismatch";
     case PacketError::kCount:
       break;
   }
@@ -191,6 +259,101 @@ PacketError decode(std::span<const std::uint8_t> in, ReportPacket& out) noexcept
   return PacketError::kNone;
 }
 
+PacketError encode(const CommandPacketV2& p, PacketBuffer& out, std::size_t& size) noexcept {
+  if (!channels_valid(p.channels)) return PacketError::kBadChannels;
+  if (!command_fields_valid(p)) return PacketError::kBadField;
+  size = command_size_v2(p.channels);
+  const std::span<std::uint8_t> s = std::span<std::uint8_t>{out}.first(size);
+  put_header_v2(s, PacketType::kCommand, p.channels);
+  put_u8(s, kCmdFlags, p.flags);
+  put_u16(s, kCmdWatchdog, p.watchdog_ms);
+  put_u32(s, kCmdSequence, p.sequence);
+  for (std::size_t i = 0; i < p.channels; ++i) {
+    put_u16(s, kCmdDac + 2 * i, from_i16(p.actuator_dac[i]));
+  }
+  put_crc(s);
+  return PacketError::kNone;
+}
+
+PacketError encode(const ReportPacketV2& p, PacketBuffer& out, std::size_t& size) noexcept {
+  if (!channels_valid(p.channels)) return PacketError::kBadChannels;
+  if (!report_fields_valid(p)) return PacketError::kBadField;
+  size = report_size_v2(p.channels);
+  const std::span<std::uint8_t> s = std::span<std::uint8_t>{out}.first(size);
+  put_header_v2(s, PacketType::kReport, p.channels);
+  put_u8(s, kRepFlags, p.flags);
+  put_u16(s, kRepRejected, p.commands_rejected);
+  put_u32(s, kRepSequence, p.sequence);
+  put_u32(s, kRepLastCommand, p.last_command_sequence);
+  put_u64(s, kRepTime, p.device_time_us);
+  for (std::size_t i = 0; i < p.channels; ++i) {
+    const std::size_t at = kRepChannel + kRepChannelStride * i;
+    put_u32(s, at, from_i32(p.encoder_counts[i]));
+    put_u16(s, at + 4, from_i16(p.load_cell_adc[i]));
+  }
+  put_crc(s);
+  return PacketError::kNone;
+}
+
+PacketError decode_v2(std::span<const std::uint8_t> in, CommandPacketV2& out) noexcept {
+  std::size_t n = 0;
+  if (const PacketError e = check_frame_v2(in, PacketType::kCommand, n); e != PacketError::kNone) {
+    return e;
+  }
+  CommandPacketV2 p;
+  p.channels = static_cast<std::uint8_t>(n);
+  p.flags = in[kCmdFlags];
+  p.watchdog_ms = get_u16(in, kCmdWatchdog);
+  p.sequence = get_u32(in, kCmdSequence);
+  for (std::size_t i = 0; i < n; ++i) p.actuator_dac[i] = to_i16(get_u16(in, kCmdDac + 2 * i));
+  if (!command_fields_valid(p)) return PacketError::kBadField;
+  out = p;
+  return PacketError::kNone;
+}
+
+PacketError decode_v2(std::span<const std::uint8_t> in, ReportPacketV2& out) noexcept {
+  std::size_t n = 0;
+  if (const PacketError e = check_frame_v2(in, PacketType::kReport, n); e != PacketError::kNone) {
+    return e;
+  }
+  ReportPacketV2 p;
+  p.channels = static_cast<std::uint8_t>(n);
+  p.flags = in[kRepFlags];
+  p.commands_rejected = get_u16(in, kRepRejected);
+  p.sequence = get_u32(in, kRepSequence);
+  p.last_command_sequence = get_u32(in, kRepLastCommand);
+  p.device_time_us = get_u64(in, kRepTime);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t at = kRepChannel + kRepChannelStride * i;
+    p.encoder_counts[i] = to_i32(get_u32(in, at));
+    p.load_cell_adc[i] = to_i16(get_u16(in, at + 4));
+  }
+  if (!report_fields_valid(p)) return PacketError::kBadField;
+  out = p;
+  return PacketError::kNone;
+}
+
+PacketError decode_any(std::span<const std::uint8_t> in, CommandPacketV2& out,
+                       std::uint8_t& version) noexcept {
+  if (in.size() >= 3 && in[2] == kProtocolVersion) {
+    CommandPacket v1;
+    const PacketError e = decode(in, v1);
+    if (e != PacketError::kNone) return e;
+    CommandPacketV2 p;
+    p.sequence = v1.sequence;
+    p.watchdog_ms = v1.watchdog_ms;
+    p.flags = v1.flags;
+    p.channels = 1;
+    p.actuator_dac[0] = v1.actuator_dac;
+    out = p;
+    version = kProtocolVersion;
+    return PacketError::kNone;
+  }
+  const PacketError e = decode_v2(in, out);
+  if (e == PacketError::kNone) version = kProtocolVersion2;
+  return e;
+}
+
 SequenceTracker::Result SequenceTracker::accept(std::uint32_t sequence) noexcept {
   if (!started_) {
     started_ = true;
@@ -258,6 +421,22 @@ double adc_to_force_N(std::int16_t adc, const Scaling& scaling) noexcept {
 
 double counts_to_position_m(std::int32_t counts, const Scaling& scaling) noexcept {
   return static_cast<double>(counts) * scaling.position_m_per_count();
+}
+
+DacValuesV2 forces_to_dacs(std::span<const double> forces_N, const Scaling& scaling,
+                           CommandPacketV2& out) noexcept {
+  if (!channels_valid(forces_N.size())) return {PacketError::kBadChannels, false};
+  std::array<std::int16_t, kMaxChannels> dacs{};
+  bool saturated = false;
+  for (std::size_t i = 0; i < forces_N.size(); ++i) {
+    const DacValue v = force_to_dac(forces_N[i], scaling);
+    if (v.error != PacketError::kNone) return {v.error, false};
+    dacs[i] = v.dac;
+    saturated = saturated || v.saturated;
+  }
+  out.channels = static_cast<std::uint8_t>(forces_N.size());
+  out.actuator_dac = dacs;
+  return {PacketError::kNone, saturated};
 }
 
 }  // namespace teleop::device::usb

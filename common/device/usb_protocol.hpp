@@ -104,6 +104,9 @@ enum class PacketError : std::uint8_t {
   kNonFinite,   // a NaN or infinite force the host refused to put on the wire
   kDuplicate,   // sequence equal to the newest accepted one
   kOutOfOrder,  // sequence older than the newest accepted one
+  // Version 2 (docs/usb-protocol.md "Version 2: n channels"):
+  kBadChannels,      // the channel count n (byte 4) outside [1, kMaxChannels]
+  kChannelMismatch,  // a v2 command whose n is not the device's channel count
   kCount,
 };
 
@@ -120,6 +123,66 @@ enum class PacketError : std::uint8_t {
 // written only when the result is kNone.
 [[nodiscard]] PacketError decode(std::span<const std::uint8_t> bytes, CommandPacket& out) noexcept;
 [[nodiscard]] PacketError decode(std::span<const std::uint8_t> bytes, ReportPacket& out) noexcept;
+
+// ---- Version 2: n channels (docs/usb-protocol.md "Version 2: n channels") ----
+// The same frozen bytes 0-3 (version 2), the channel count n at byte 4, then the v1 fields with
+// n values per channel, the CRC-32 over every byte before it. The length follows from n, so a
+// length that does not match is refused. Both types fit kMaxPacketSize at n = 6 (the report
+// exactly: it carries no per-channel actuator echo and its flags are one byte, see the docs).
+inline constexpr std::uint8_t kProtocolVersion2 = 2;
+inline constexpr std::size_t kMaxChannels = 6;
+
+[[nodiscard]] constexpr std::size_t command_size_v2(std::size_t channels) noexcept {
+  return 16 + 2 * channels;
+}
+[[nodiscard]] constexpr std::size_t report_size_v2(std::size_t channels) noexcept {
+  return 28 + 6 * channels;
+}
+static_assert(command_size_v2(kMaxChannels) <= kMaxPacketSize);
+static_assert(report_size_v2(kMaxChannels) <= kMaxPacketSize);
+
+// Host -> device, 16 + 2n bytes.
+struct CommandPacketV2 {
+  std::uint32_t sequence{0};
+  std::uint16_t watchdog_ms{kDefaultWatchdogMs};          // in [1, 1000]
+  std::uint8_t flags{0};                                  // CommandFlags
+  std::uint8_t channels{1};                               // n in [1, kMaxChannels]
+  std::array<std::int16_t, kMaxChannels> actuator_dac{};  // [0, n) used, each in [-32767, 32767]
+};
+
+// Device -> host, 28 + 6n bytes.
+struct ReportPacketV2 {
+  std::uint32_t sequence{0};
+  std::uint64_t device_time_us{0};
+  std::uint8_t flags{0};     // ReportFlags bits 0-5 (saturated / clipped: any channel)
+  std::uint8_t channels{1};  // n in [1, kMaxChannels]
+  std::uint32_t last_command_sequence{0};
+  std::uint16_t commands_rejected{0};
+  std::array<std::int32_t, kMaxChannels> encoder_counts{};  // [0, n) used
+  std::array<std::int16_t, kMaxChannels> load_cell_adc{};   // [0, n) used, in [-32767, 32767]
+};
+
+// Any packet of either version fits.
+using PacketBuffer = std::array<std::uint8_t, kMaxPacketSize>;
+
+// kBadChannels / kBadField when a value is out of its range (nothing written then); else the
+// packet is out[0, size).
+[[nodiscard]] PacketError encode(const CommandPacketV2& packet, PacketBuffer& out,
+                                 std::size_t& size) noexcept;
+[[nodiscard]] PacketError encode(const ReportPacketV2& packet, PacketBuffer& out,
+                                 std::size_t& size) noexcept;
+// Version 2 only (a v1 packet is kBadVersion). Checks, in order: truncated (< 4 bytes), magic,
+// version, type, truncated (< 5 bytes), n in [1, 6] (kBadChannels), the size for n, CRC, fields.
+// `out` is written only when the result is kNone.
+[[nodiscard]] PacketError decode_v2(std::span<const std::uint8_t> bytes,
+                                    CommandPacketV2& out) noexcept;
+[[nodiscard]] PacketError decode_v2(std::span<const std::uint8_t> bytes,
+                                    ReportPacketV2& out) noexcept;
+// A reader of both versions: a v1 packet (byte 2 = 1) goes through the v1 decoder unchanged and
+// comes out as n = 1 (its actuator_dac in channel 0), anything else through decode_v2.
+// `version` is the packet's version when the result is kNone.
+[[nodiscard]] PacketError decode_any(std::span<const std::uint8_t> bytes, CommandPacketV2& out,
+                                     std::uint8_t& version) noexcept;
 
 // The receiver's sequence rule (both directions): the first packet after reset() is accepted;
 // after that a packet is accepted when it is newer in 32-bit serial-number arithmetic (RFC 1982:
@@ -187,5 +250,15 @@ struct DacValue {
 [[nodiscard]] double dac_to_force_N(std::int16_t dac, const Scaling& scaling) noexcept;
 [[nodiscard]] double adc_to_force_N(std::int16_t adc, const Scaling& scaling) noexcept;
 [[nodiscard]] double counts_to_position_m(std::int32_t counts, const Scaling& scaling) noexcept;
+
+// Per-channel force_to_dac of forces_N (1..kMaxChannels entries, else kBadChannels):
+// each rounded and clipped to +-32767 (`saturated` tells whether any was); a non-finite force
+// anywhere refuses the whole command (kNonFinite, `out` untouched), as v1 refuses one.
+struct DacValuesV2 {
+  PacketError error{PacketError::kNone};
+  bool saturated{false};
+};
+[[nodiscard]] DacValuesV2 forces_to_dacs(std::span<const double> forces_N, const Scaling& scaling,
+                                         CommandPacketV2& out) noexcept;
 
 }  // namespace teleop::device::usb

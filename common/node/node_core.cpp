@@ -4,6 +4,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/node/cycle_checks.hpp"
+
 namespace teleop::node {
 namespace {
 
@@ -118,7 +120,7 @@ void NodeCore::step(std::chrono::nanoseconds now, const rt::LoopTiming* timing) 
 void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock,
                     const rt::LoopTiming* timing) noexcept {
   ++sequence_;
-  const char* own_stall = check_own_stall(clock);
+  const char* own_stall = stall_.check(clock, settings_.period, settings_.machine.peer_timeout);
 
   device::Sample sample{};
   const device::Status read = device_.read(sample);
@@ -126,8 +128,7 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
   const double velocity_m_per_s = velocity_.step(sample.position_m);
   receive_peer(now);
   // Against the clock: after a stall the deadline is as old as the stall.
-  const std::int64_t peer_age_ns =
-      have_peer_ ? std::max<std::int64_t>(0, clock.count() - peer_.arrival_ns) : 0;
+  const std::int64_t peer_age_ns = peer_state_age_ns(have_peer_, clock, peer_.arrival_ns);
 
   const double own_m = sample.position_m;
   const double gap_m = have_peer_ ? side_->alignment_gap_m(own_m, peer_.state.position_m) : 0.0;
@@ -197,30 +198,6 @@ void NodeCore::step(std::chrono::nanoseconds now, std::chrono::nanoseconds clock
   if (sequence_ % kStatsEvery == 1) publish_stats(timing, peer_age_ns);
 }
 
-// An own stall: the time since the previous cycle's clock beyond the peer timeout, or a burst
-// of overruns (lateness beyond one period accumulating faster than half the time that passes
-// drains it). nullptr: none.
-const char* NodeCore::check_own_stall(std::chrono::nanoseconds clock) noexcept {
-  const char* own_stall = nullptr;
-  if (have_clock_) {
-    const std::int64_t gap_ns = clock.count() - last_clock_ns_;
-    const std::int64_t period_ns = settings_.period.count();
-    const std::int64_t timeout_ns = settings_.machine.peer_timeout.count();
-    overrun_debt_ns_ =
-        std::max<std::int64_t>(0, overrun_debt_ns_ + std::max<std::int64_t>(0, gap_ns - period_ns) -
-                                      std::max<std::int64_t>(0, gap_ns) / 2);
-    if (gap_ns > timeout_ns) {
-      own_stall = "own loop stalled past the peer timeout";
-    } else if (overrun_debt_ns_ > timeout_ns) {
-      own_stall = "own loop overran in a burst";
-    }
-  }
-  if (own_stall != nullptr) overrun_debt_ns_ = 0;
-  have_clock_ = true;
-  last_clock_ns_ = clock.count();
-  return own_stall;
-}
-
 // The newest peer state from the link thread, and the round trip its echo measures.
 void NodeCore::receive_peer(std::chrono::nanoseconds now) noexcept {
   // The round trip's window moves on even while no echo comes back.
@@ -235,14 +212,8 @@ void NodeCore::receive_peer(std::chrono::nanoseconds now) noexcept {
   have_peer_ = true;
   peer_fingerprint_.store(incoming.state.config_fingerprint, std::memory_order_release);
   peer_change_id_.store(incoming.state.parameter_change_id, std::memory_order_release);
-  if (incoming.state.last_peer_sequence == 0) return;
-  const auto rtt = round_trip_.echoed(incoming.state.last_peer_sequence,
-                                      std::chrono::nanoseconds(incoming.state.peer_age_ns),
-                                      std::chrono::nanoseconds(incoming.arrival_ns));
-  if (rtt && rtt->count() > 0) {
-    round_trip_ns_ = rtt->count();
-    round_trip_window_.add(now.count(), rtt->count());
-  }
+  note_echo(incoming.state, incoming.arrival_ns, now, round_trip_, round_trip_ns_,
+            round_trip_window_);
 }
 
 // The operator's command of this cycle (one per cycle, in order); the clutch only on the side
@@ -337,25 +308,9 @@ void NodeCore::publish_state(std::chrono::nanoseconds now, Mode mode, double own
 
 void NodeCore::publish_stats(const rt::LoopTiming* timing, std::int64_t peer_age_ns) noexcept {
   LoopSnapshot s;
-  if (timing != nullptr) {
-    s.cycles = timing->cycles();
-    s.overruns = timing->overruns();
-    s.wakeup_p50_ns = timing->wakeup_latency().quantile(0.5).count();
-    s.wakeup_p99_ns = timing->wakeup_latency().quantile(0.99).count();
-    s.wakeup_p999_ns = timing->wakeup_latency().quantile(0.999).count();
-    s.wakeup_max_ns = timing->wakeup_latency().max().count();
-    s.compute_p50_ns = timing->compute_time().quantile(0.5).count();
-    s.compute_p99_ns = timing->compute_time().quantile(0.99).count();
-    s.compute_max_ns = timing->compute_time().max().count();
-  } else {
-    s.cycles = sequence_;
-  }
-  s.round_trip_ns = round_trip_ns_;
-  s.round_trip_p50_ns = round_trip_window_.quantile(0.5);
-  s.round_trip_p99_ns = round_trip_window_.quantile(0.99);
-  s.peer_restarts = peer_restarts_;
-  s.peer_session_id = have_peer_ ? peer_.state.session_id : 0;
-  s.peer_age_ns = peer_age_ns;
+  fill_loop_snapshot(s, timing, sequence_,
+                     LinkSnapshotInputs{round_trip_ns_, &round_trip_window_, peer_restarts_,
+                                        have_peer_ ? peer_.state.session_id : 0, peer_age_ns});
   stats_out_.write(s);
 }
 

@@ -43,6 +43,7 @@
 #include "common/core/defaults.hpp"
 #include "common/core/rt_safe.hpp"
 #include "common/device/haptic_device.hpp"
+#include "common/node/cycle_checks.hpp"
 #include "common/node/node_side.hpp"
 #include "common/node/node_state_machine.hpp"
 #include "common/rt/latest_value.hpp"
@@ -227,7 +228,6 @@ class NodeCore {
 
  private:
   // The phases of step(), in order.
-  TELEOP_RT [[nodiscard]] const char* check_own_stall(std::chrono::nanoseconds clock) noexcept;
   TELEOP_RT void receive_peer(std::chrono::nanoseconds now) noexcept;
   TELEOP_RT [[nodiscard]] Command next_command() noexcept;
   TELEOP_RT [[nodiscard]] CycleOutputs decide(std::chrono::nanoseconds now, Command command,
@@ -281,9 +281,7 @@ class NodeCore {
 
   // RT-thread state.
   std::uint64_t sequence_{0};
-  bool have_clock_{false};
-  std::int64_t last_clock_ns_{0};
-  std::int64_t overrun_debt_ns_{0};
+  StallCheck stall_{};
   bool have_peer_{false};
   PeerSample peer_{};
   std::uint64_t peer_restarts_{0};

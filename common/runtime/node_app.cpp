@@ -13,6 +13,7 @@
 #include <iostream>
 #include <optional>
 #include <stdexcept>
+#include <type_traits>
 #include <zmq.hpp>
 
 #include "common/config/parameter_space.hpp"
@@ -112,8 +113,9 @@ std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string&
 
 // docs/nodes.md "Before engage": a refused arm or engage, with both fingerprints (and both
 // parameter changes) named.
-std::string coupling_refusal_message(const node::NodeCore& core) {
-  const node::NodeSettings& s = core.settings();
+template <class Core>
+std::string coupling_refusal_message(const Core& core) {
+  const auto& s = core.settings();
   std::string m = std::string(core.last_coupling_refusal()) + " (own configuration fingerprint " +
                   config::fingerprint_hex(s.config_fingerprint) + ", peer's " +
                   (core.peer_fingerprint() == 0 ? std::string("none")
@@ -127,8 +129,8 @@ std::string coupling_refusal_message(const node::NodeCore& core) {
 
 // docs/nodes.md "Before engage": the fingerprints and the check at start, in every telemetry
 // message.
-void fill_configuration(v1::Telemetry& t, const node::NodeCore& core,
-                        const config::NodeSetup& setup) {
+template <class Core>
+void fill_configuration(v1::Telemetry& t, const Core& core, const config::NodeSetup& setup) {
   t.set_config_fingerprint(setup.settings.config_fingerprint);
   t.set_peer_config_fingerprint(core.peer_fingerprint());
   v1::ConfigurationCheck* c = t.mutable_configuration_check();
@@ -205,6 +207,7 @@ void fill_link_stats(v1::LinkStats& k, const LinkCounters& link, const node::Loo
   k.set_rejected_wrong_role(rej(R::kWrongRole));
   k.set_rejected_stale(rej(R::kStale));
   k.set_rejected_wrong_session(rej(R::kWrongSession));
+  k.set_rejected_wrong_axes(rej(R::kWrongAxes));
   k.set_lost(link.lost.load());
   const double expected = static_cast<double>(link.accepted.load() + link.lost.load());
   k.set_loss_fraction(expected > 0 ? static_cast<double>(link.lost.load()) / expected : 0.0);
@@ -291,7 +294,8 @@ void apply_retune(node::NodeCore& core, const v1::ParameterUpdate& update,
 
 // A mode command: posted to the loop, answered once the loop took it and ran one more cycle
 // (so that the reply's mode reflects it), or after 500 ms.
-void apply_mode_command(node::NodeCore& core, node::Command c, v1::NodeCommandReply& reply) {
+template <class Core>
+void apply_mode_command(Core& core, node::Command c, v1::NodeCommandReply& reply) {
   const std::uint64_t refusals = core.coupling_refusals();
   if (!core.post_command(c)) {
     refuse(reply, "command queue full");
@@ -349,6 +353,27 @@ NodeApp::NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDevice> 
   if (!device_) throw std::invalid_argument("node needs a device");
   if (setup_.settings.session_id == 0) setup_.settings.session_id = random_session_id();
   core_ = std::make_unique<node::NodeCore>(setup_.settings, *device_);
+  impl_ = std::make_unique<Impl>();
+}
+
+NodeApp::NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDeviceAxes> device,
+                 NodeAppOptions options)
+    : setup_(std::move(setup)), axes_device_(std::move(device)), options_(std::move(options)) {
+  if (!axes_device_) throw std::invalid_argument("node needs a device");
+  if (setup_.axes != axes_device_->axes()) {
+    throw std::invalid_argument("NodeSetup.axes: " + std::to_string(setup_.axes) +
+                                " but the device has " + std::to_string(axes_device_->axes()));
+  }
+  if (setup_.settings.session_id == 0) setup_.settings.session_id = random_session_id();
+  // One source for what both cores' settings share.
+  node::NodeAxesSettings& a = setup_.axes_settings;
+  a.role = setup_.settings.role;
+  a.period = setup_.settings.period;
+  a.session_id = setup_.settings.session_id;
+  a.config_fingerprint = setup_.settings.config_fingerprint;
+  a.permits_coupling = setup_.settings.permits_coupling;
+  a.coupling_refusal = setup_.settings.coupling_refusal;
+  axes_core_ = std::make_unique<node::NodeCoreAxes>(a, *axes_device_);
   impl_ = std::make_unique<Impl>();
 }
 
@@ -458,11 +483,19 @@ void NodeApp::start_link_threads() {
 void NodeApp::start_loop() {
   Impl& m = *impl_;
   const auto hook = options_.after_step;
-  m.loop = std::make_unique<rt::PeriodicLoop>(setup_.settings.period, setup_.rt,
-                                              [this, hook](std::chrono::nanoseconds deadline) {
-                                                core_->step(deadline, &impl_->loop->timing());
-                                                if (hook) hook();
-                                              });
+  if (axes_core_) {
+    m.loop = std::make_unique<rt::PeriodicLoop>(
+        setup_.settings.period, setup_.rt, [this, hook](std::chrono::nanoseconds deadline) {
+          axes_core_->step(deadline, &impl_->loop->timing());
+          if (hook) hook();
+        });
+  } else {
+    m.loop = std::make_unique<rt::PeriodicLoop>(setup_.settings.period, setup_.rt,
+                                                [this, hook](std::chrono::nanoseconds deadline) {
+                                                  core_->step(deadline, &impl_->loop->timing());
+                                                  if (hook) hook();
+                                                });
+  }
   try {
     m.loop->start();
   } catch (...) {
@@ -478,10 +511,18 @@ void NodeApp::apply_link_thread_priority() const {
   if (link_rt.fifo_priority > 0) (void)rt::apply_rt_settings(link_rt);
 }
 
-// One send per loop cycle, woken by the loop's counter (a futex wake, no lock).
 void NodeApp::run_state_sender() {
+  if (axes_core_) {
+    send_states(*axes_core_);
+  } else {
+    send_states(*core_);
+  }
+}
+
+// One send per loop cycle, woken by the loop's counter (a futex wake, no lock).
+template <class Core>
+void NodeApp::send_states(Core& core) {
   Impl& m = *impl_;
-  node::NodeCore& core = *core_;
   apply_link_thread_priority();
   std::uint32_t seen = core.state_published().load(std::memory_order_acquire);
   transport::NodeStateRecord state;
@@ -496,14 +537,23 @@ void NodeApp::run_state_sender() {
   }
 }
 
-// Every frame that arrived goes through the filter (each one counted); only the newest
-// accepted state reaches the loop, so it never works through a backlog.
 void NodeApp::run_peer_receiver() {
+  if (axes_core_) {
+    receive_states(*axes_core_);
+  } else {
+    receive_states(*core_);
+  }
+}
+
+// Every frame that arrived goes through the filter (each one counted); only the newest
+// accepted state reaches the loop, so it never works through a backlog. A state of another
+// number of axes than this node's is rejected (kWrongAxes).
+template <class Core>
+void NodeApp::receive_states(Core& core) {
   Impl& m = *impl_;
-  node::NodeCore& core = *core_;
   apply_link_thread_priority();
   const Role expected = setup_.settings.role == Role::kMaster ? Role::kSlave : Role::kMaster;
-  transport::PeerStateFilter filter(expected);
+  transport::PeerStateFilter filter(expected, axes());
   zmq::message_t frame;
   while (m.running.load()) {
     if (!transport::wait_readable(*m.state_sub, 20ms)) continue;
@@ -531,10 +581,18 @@ void NodeApp::run_peer_receiver() {
   }
 }
 
-// Applies each command through the loop and replies with the mode the loop reached.
 void NodeApp::run_command_server() {
+  if (axes_core_) {
+    serve_commands(*axes_core_);
+  } else {
+    serve_commands(*core_);
+  }
+}
+
+// Applies each command through the loop and replies with the mode the loop reached.
+template <class Core>
+void NodeApp::serve_commands(Core& core) {
   Impl& m = *impl_;
-  node::NodeCore& core = *core_;
   while (m.running.load()) {
     if (!transport::wait_readable(*m.command_rep, 50ms)) continue;
     zmq::message_t request;
@@ -558,7 +616,7 @@ void NodeApp::run_command_server() {
       reply.set_refused_unauthorized(true);
       spdlog::warn("{}", refusal);
     } else {
-      answer_command(cmd, reply);
+      answer_command(core, cmd, reply);
     }
     reply.set_mode(to_proto(core.mode()));
     reply.set_mode_reason(core.mode_reason());
@@ -572,13 +630,21 @@ void NodeApp::run_command_server() {
   }
 }
 
-void NodeApp::answer_command(const v1::NodeCommand& cmd, v1::NodeCommandReply& reply) {
+template <class Core>
+void NodeApp::answer_command(Core& core, const v1::NodeCommand& cmd, v1::NodeCommandReply& reply) {
   Impl& m = *impl_;
-  node::NodeCore& core = *core_;
   if (cmd.kind() == v1::NodeCommand::STATUS) {
     reply.set_ok(true);
   } else if (cmd.kind() == v1::NodeCommand::RETUNE) {
-    apply_retune(core, cmd.update(), m.newest_retune_id, reply);
+    if constexpr (std::is_same_v<Core, node::NodeCore>) {
+      apply_retune(core, cmd.update(), m.newest_retune_id, reply);
+    } else {
+      refuse(reply,
+             "parameter update refused: guarded parameter changes are not supported for "
+             "n > 1 axes yet (this node has " +
+                 std::to_string(core.axes()) + " axes)");
+      spdlog::warn("RETUNE {}: {}", cmd.update().change_id(), reply.message());
+    }
   } else if (cmd.kind() == v1::NodeCommand::FLIGHT_RECORD) {
     m.flight_request.store(true);
     reply.set_ok(true);
@@ -596,16 +662,24 @@ void NodeApp::answer_command(const v1::NodeCommand& cmd, v1::NodeCommandReply& r
   }
 }
 
-// Every cycle's record, batched at telemetry_rate_hz with the loop and link statistics; mode
-// changes logged.
 void NodeApp::run_telemetry_publisher() {
+  if (axes_core_) {
+    publish_telemetry(*axes_core_);
+  } else {
+    publish_telemetry(*core_);
+  }
+}
+
+// Every cycle's record (each axis of it), batched at telemetry_rate_hz with the loop and link
+// statistics; mode changes logged.
+template <class Core>
+void NodeApp::publish_telemetry(Core& core) {
   Impl& m = *impl_;
-  node::NodeCore& core = *core_;
   const auto period =
       std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
   auto next = std::chrono::steady_clock::now() + period;
   node::LoopSnapshot stats{};
-  node::ActiveLaw active{};
+  [[maybe_unused]] node::ActiveLaw active{};  // one axis only
   node::Mode last_mode = node::Mode::kDisarmed;
   v1::Telemetry t;
   FlightRecorder flight(setup_.settings.period);
@@ -629,8 +703,13 @@ void NodeApp::run_telemetry_publisher() {
       flight.keep(*c);
     }
     (void)core.stats_out().read(stats);
-    (void)core.active_out().read(active);
-    fill_active(*t.mutable_active(), active);
+    if constexpr (std::is_same_v<Core, node::NodeCore>) {
+      (void)core.active_out().read(active);
+      fill_active(*t.mutable_active(), active);
+    } else {
+      // n axes: the parameters built with (change 0), no ramp.
+      t.mutable_active()->set_ramp_progress(1.0);
+    }
     t.set_mode(to_proto(core.mode()));
     t.set_mode_reason(core.mode_reason());
     fill_configuration(t, core, setup_);
@@ -655,11 +734,21 @@ void NodeApp::stop() {
   if (!impl_) return;
   Impl& m = *impl_;
   if (m.loop) m.loop->stop();
-  (void)device_->write(device::Command{0.0});
-  (void)device_->deactivate();
+  std::atomic<std::uint32_t>* published = nullptr;
+  if (axes_device_) {
+    device::CommandAxes zero;
+    zero.force_N = device::AxisVector::Zero(axes_device_->axes());
+    (void)axes_device_->write(zero);
+    (void)axes_device_->deactivate();
+    published = &axes_core_->state_published();
+  } else {
+    (void)device_->write(device::Command{0.0});
+    (void)device_->deactivate();
+    published = &core_->state_published();
+  }
   m.running = false;
-  core_->state_published().fetch_add(1);
-  core_->state_published().notify_all();
+  published->fetch_add(1);
+  published->notify_all();
   for (std::thread* t : {&m.sender, &m.receiver, &m.commands, &m.telemetry}) {
     if (t->joinable()) t->join();
   }

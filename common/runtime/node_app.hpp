@@ -22,7 +22,9 @@
 
 #include "common/config/node_loader.hpp"
 #include "common/device/haptic_device.hpp"
+#include "common/device/haptic_device_axes.hpp"
 #include "common/node/node_core.hpp"
+#include "common/node/node_core_axes.hpp"
 #include "common/rt/periodic_loop.hpp"
 
 namespace teleop::v1 {
@@ -37,10 +39,17 @@ struct NodeAppOptions {
   std::function<void()> after_step{};
 };
 
+// One axis (setup.axes == 1) runs NodeCore on a HapticDevice; several (setup.axes > 1,
+// config::to_node_axes_setup) run NodeCoreAxes on a HapticDeviceAxes with the same threads
+// (each thread's body is a template over the core; docs/nodes.md "n axes live").
 class NodeApp {
  public:
   // Takes a configured, activated device. Throws on bad settings.
   NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDevice> device,
+          NodeAppOptions options = {});
+  // n axes: setup.axes_settings (role, period, session and fingerprint taken from
+  // setup.settings) on a configured, activated device of setup.axes axes.
+  NodeApp(config::NodeSetup setup, std::unique_ptr<device::HapticDeviceAxes> device,
           NodeAppOptions options = {});
   ~NodeApp();
   NodeApp(const NodeApp&) = delete;
@@ -52,7 +61,11 @@ class NodeApp {
   // Stops the loop first (the device goes to 0 N), then the threads. Idempotent.
   void stop();
 
+  // The one-axis core (setup.axes == 1 only).
   [[nodiscard]] node::NodeCore& core() noexcept { return *core_; }
+  // The n-axis core (nullptr with one axis).
+  [[nodiscard]] node::NodeCoreAxes* axes_core() noexcept { return axes_core_.get(); }
+  [[nodiscard]] int axes() const noexcept { return axes_core_ ? axes_core_->axes() : 1; }
   [[nodiscard]] const config::NodeSetup& setup() const noexcept { return setup_; }
   [[nodiscard]] std::uint64_t session_id() const noexcept { return setup_.settings.session_id; }
   // RT settings the kernel refused (after start()).
@@ -60,7 +73,8 @@ class NodeApp {
   // The RT loop's heartbeat: its cycles so far (modulo 2^32), read by the systemd watchdog
   // thread. One atomic load.
   [[nodiscard]] std::uint64_t loop_cycles() const noexcept {
-    return core_->state_published().load(std::memory_order_acquire);
+    return (core_ ? core_->state_published() : axes_core_->state_published())
+        .load(std::memory_order_acquire);
   }
   // Set when a SHUTDOWN command arrived.
   [[nodiscard]] bool shutdown_requested() const noexcept { return shutdown_.load(); }
@@ -82,12 +96,24 @@ class NodeApp {
   void run_telemetry_publisher();  // thread "telemetry"
   // On the sender's and the receiver's thread: the priority set_link_thread_priority() chose.
   void apply_link_thread_priority() const;
+  // The thread bodies for either core (node_app.cpp).
+  template <class Core>
+  void send_states(Core& core);
+  template <class Core>
+  void receive_states(Core& core);
+  template <class Core>
+  void serve_commands(Core& core);
+  template <class Core>
+  void publish_telemetry(Core& core);
   // On the command server's thread: the answer to a well-formed, authorised command.
-  void answer_command(const v1::NodeCommand& cmd, v1::NodeCommandReply& reply);
+  template <class Core>
+  void answer_command(Core& core, const v1::NodeCommand& cmd, v1::NodeCommandReply& reply);
   config::NodeSetup setup_;
   std::unique_ptr<device::HapticDevice> device_;
+  std::unique_ptr<device::HapticDeviceAxes> axes_device_;
   NodeAppOptions options_;
   std::unique_ptr<node::NodeCore> core_;
+  std::unique_ptr<node::NodeCoreAxes> axes_core_;
   std::unique_ptr<Impl> impl_;
   std::vector<std::string> refused_{};
   std::atomic<bool> shutdown_{false};

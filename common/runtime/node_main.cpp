@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/config_loader.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/node_loader.hpp"
@@ -15,6 +16,7 @@
 #include "common/core/command_line.hpp"
 #include "common/core/version.hpp"
 #include "common/device/sim_device.hpp"
+#include "common/device/sim_device_axes.hpp"
 #include "common/device/usb_device.hpp"
 #include "common/runtime/node_app.hpp"
 #include "common/runtime/service_notify.hpp"
@@ -57,12 +59,14 @@ std::unique_ptr<device::HapticDevice> open_device(const config::NodeSetup& setup
 // docs/nodes.md "Before engage": the node's own stability analysis of its configuration, here at
 // start (never on the RT thread, which only reads the outcome). A failed one refuses arm and
 // engage unless experiment.allow_unstable is set, which is then said loudly.
-void apply_configuration_check(const config::CompiledSystem& system, config::NodeSetup& setup) {
-  const config::ConfigurationCheck c =
-      config::check_configuration(system.teleop(), system.allow_unstable());
+// With n > 1 axes the same check of the n-axis loop (check_configuration_axes), into the n-axis
+// core's settings.
+void apply_check(const config::ConfigurationCheck& c, config::NodeSetup& setup) {
+  const std::string refusal = c.permits_coupling ? std::string() : "arm and engage " + c.refusal;
   setup.settings.permits_coupling = c.permits_coupling;
-  setup.settings.coupling_refusal =
-      c.permits_coupling ? std::string() : "arm and engage " + c.refusal;
+  setup.settings.coupling_refusal = refusal;
+  setup.axes_settings.permits_coupling = c.permits_coupling;
+  setup.axes_settings.coupling_refusal = refusal;
   setup.check = c;
   spdlog::info(
       "configuration fingerprint {}; own analysis at {} sample(s) of round trip: {} "
@@ -77,6 +81,36 @@ void apply_configuration_check(const config::CompiledSystem& system, config::Nod
         "its analysis calls {} (least damping ratio {:.4f})",
         c.verdict, c.min_damping_ratio);
   }
+}
+
+void apply_configuration_check(const config::CompiledSystem& system, config::NodeSetup& setup) {
+  apply_check(config::check_configuration(system.teleop(), system.allow_unstable()), setup);
+}
+
+// n axes (docs/nodes.md "n axes live"): the simulated n-axis device, configured and activated.
+std::unique_ptr<device::HapticDeviceAxes> open_axes_device(const config::NodeSetup& setup) {
+  auto dev = std::make_unique<device::SimDeviceAxes>(setup.sim_axes);
+  if (const device::Status s = dev->configure(); !s.ok()) {
+    throw std::runtime_error(std::string("device: ") + s.message);
+  }
+  if (const device::Status s = dev->activate(); !s.ok()) {
+    throw std::runtime_error(std::string("device: ") + s.message);
+  }
+  return dev;
+}
+
+// A configuration with axes > 1: its setup and the n-axis node, after its own analysis of the
+// n-axis loop (as apply_configuration_check for one axis: an unstable or invalid loop refuses
+// arm and engage unless experiment.allow_unstable).
+std::unique_ptr<NodeApp> make_axes_node(const config::LoadedConfig& loaded, transport::Role role) {
+  config::NodeSetup setup = config::to_node_axes_setup(loaded, role);
+  setup.settings.session_id = random_session_id();
+  spdlog::info("{} task-space axes", setup.axes);
+  apply_check(config::check_configuration_axes(config::to_axes_params(loaded),
+                                               loaded.config.experiment().allow_unstable()),
+              setup);
+  auto device = open_axes_device(setup);
+  return std::make_unique<NodeApp>(std::move(setup), std::move(device));
 }
 
 }  // namespace
@@ -132,11 +166,16 @@ int run_node_main(transport::Role role, int argc, char** argv) {
   std::unique_ptr<NodeApp> app;
   try {
     // The file, validated once, as the whole typed system (system_compiler.hpp).
-    const config::CompiledSystem system = config::compile_system_file(config_path, overrides);
-    config::NodeSetup setup = system.node(role);
-    setup.settings.session_id = random_session_id();
-    apply_configuration_check(system, setup);
-    app = std::make_unique<NodeApp>(setup, open_device(setup));
+    config::LoadedConfig loaded = config::parse_config_file(config_path, overrides);
+    if (config::configured_axes(loaded.config) > 1) {
+      app = make_axes_node(loaded, role);
+    } else {
+      const config::CompiledSystem system = config::compile_system(std::move(loaded));
+      config::NodeSetup setup = system.node(role);
+      setup.settings.session_id = random_session_id();
+      apply_configuration_check(system, setup);
+      app = std::make_unique<NodeApp>(setup, open_device(setup));
+    }
     app->start();
   } catch (const config::ConfigError& e) {
     std::cerr << name << ": invalid configuration:\n" << e.what() << "\n";

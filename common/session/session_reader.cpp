@@ -24,6 +24,28 @@ std::vector<Stamped<T>> stamped_on(const SessionReader& session, std::string_vie
   return out;
 }
 
+// "FILE: /master/telemetry cycle 12 (log time T ns): " for a record's errors.
+std::string cycle_at(const SessionReader& session, std::string_view topic,
+                     std::uint64_t log_time_ns, const v1::CycleRecord& c) {
+  return session.path() + ": " + std::string(topic) + " cycle " + std::to_string(c.sequence()) +
+         " (log time " + std::to_string(log_time_ns) + " ns): ";
+}
+
+// The record as n axes, or an error naming where it is.
+node::CycleRecordAxes axes_or_throw(const SessionReader& session, std::string_view topic,
+                                    std::uint64_t log_time_ns, const v1::CycleRecord& c) {
+  const std::optional<node::CycleRecordAxes> r = telemetry::axes_from_proto(c);
+  if (!r) {
+    throw std::runtime_error(cycle_at(session, topic, log_time_ns, c) + "a record of " +
+                             std::to_string(c.axes()) + " axes the codec refuses (at most " +
+                             std::to_string(kMaxAxes) +
+                             " axes, each per-axis field holding one entry per axis; positions " +
+                             std::to_string(c.positions_m_size()) + ", forces " +
+                             std::to_string(c.forces_n_size()) + ")");
+  }
+  return *r;
+}
+
 }  // namespace
 
 SessionReader SessionReader::open(const std::filesystem::path& path) {
@@ -153,9 +175,34 @@ std::vector<RecordedCycle> SessionReader::cycles(bool master, const ByteProgress
   std::vector<RecordedCycle> cycles;
   for_each_telemetry(
       master,
-      [&](std::uint64_t, const v1::Telemetry& t) {
+      [&](std::uint64_t log_time_ns, const v1::Telemetry& t) {
         for (const v1::CycleRecord& c : t.cycles()) {
+          const node::CycleRecordAxes n = axes_or_throw(*this, topic, log_time_ns, c);
+          if (n.axes != 1) {
+            throw std::runtime_error(cycle_at(*this, topic, log_time_ns, c) + "a record of " +
+                                     std::to_string(n.axes) +
+                                     " axes, read one axis (read it as n axes)");
+          }
           cycles.push_back({t.session_id(), telemetry::from_proto(c)});
+        }
+      },
+      read);
+  return cycles;
+}
+
+std::vector<RecordedCycleAxes> SessionReader::cycles_axes(bool master,
+                                                          const ByteProgress& read) const {
+  const std::string_view topic = topic::telemetry(master);
+  if (!has_topic(topic)) {
+    throw std::runtime_error(path() + ": no channel '" + std::string(topic) +
+                             "' (channels: " + channel_list() + ")");
+  }
+  std::vector<RecordedCycleAxes> cycles;
+  for_each_telemetry(
+      master,
+      [&](std::uint64_t log_time_ns, const v1::Telemetry& t) {
+        for (const v1::CycleRecord& c : t.cycles()) {
+          cycles.push_back({t.session_id(), axes_or_throw(*this, topic, log_time_ns, c)});
         }
       },
       read);

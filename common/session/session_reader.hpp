@@ -21,6 +21,7 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/node/node_core.hpp"
+#include "common/node/node_core_axes.hpp"
 #include "common/record/mcap_reader.hpp"
 #include "common/record/session.hpp"
 #include "teleop/v1/config.pb.h"
@@ -43,6 +44,14 @@ struct Stamped {
 struct RecordedCycle {
   std::uint64_t session_id{0};
   node::CycleRecord cycle{};
+};
+
+// One control cycle of n task-space axes (issue 18): teleop.v1.CycleRecord decoded by
+// telemetry::axes_from_proto, a one-axis record as axis 0 of a 1-axis record. Per axis:
+// cycle.position_m[i] etc. for i < cycle.axes.
+struct RecordedCycleAxes {
+  std::uint64_t session_id{0};
+  node::CycleRecordAxes cycle{};
 };
 
 // What one pass over a session hands out, in log-time order; a callback left empty skips its
@@ -101,7 +110,15 @@ class SessionReader {
   // records, which repeat cycles, left out). Throws naming the file when there is no such
   // channel ("FILE: no channel '/slave/telemetry' (channels: ...)"). `read` as for
   // for_each_telemetry.
+  // A cycle of several axes has no one-axis form: it throws naming the file, topic and sequence
+  // (read such sessions with cycles_axes()), as does a record the codec refuses.
   [[nodiscard]] std::vector<RecordedCycle> cycles(bool master, const ByteProgress& read = {}) const;
+  // Every cycle one node recorded, of any number of axes (a one-axis session as 1-axis cycles).
+  // Throws as cycles() for a missing channel, and for a record the codec refuses (more than
+  // kMaxAxes axes, or a per-axis field not holding `axes` entries): "FILE: /master/telemetry
+  // cycle 12 (log time T ns): ...".
+  [[nodiscard]] std::vector<RecordedCycleAxes> cycles_axes(bool master,
+                                                           const ByteProgress& read = {}) const;
   [[nodiscard]] std::vector<Stamped<v1::StabilityReport>> reports() const;
   [[nodiscard]] std::vector<Stamped<v1::Alarm>> alarms() const;
   [[nodiscard]] std::vector<Stamped<v1::ParameterChangeRecord>> parameter_changes() const;

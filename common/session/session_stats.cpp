@@ -4,6 +4,8 @@
 #include <cmath>
 #include <iterator>
 
+#include "common/telemetry/cycle_codec.hpp"
+
 namespace teleop::record {
 
 void NodeTelemetryStats::add(const v1::Telemetry& t) {
@@ -14,6 +16,7 @@ void NodeTelemetryStats::add(const v1::Telemetry& t) {
   for (const v1::CycleRecord& c : t.cycles()) {
     ++cycles;
     ++modes[v1::NodeMode_Name(c.mode())];
+    add_axes(c);
     wakeups_ns_.push_back(c.wakeup_latency_ns());
     auto& second = per_second_[c.sample_time_ns() / 1'000'000'000];
     ++second.first;
@@ -37,6 +40,28 @@ void NodeTelemetryStats::add(const v1::Telemetry& t) {
     }
     any = true;
     last_sequence = c.sequence();
+  }
+}
+
+void NodeTelemetryStats::add_axes(const v1::CycleRecord& c) {
+  const std::optional<node::CycleRecordAxes> r = telemetry::axes_from_proto(c);
+  if (!r) {
+    if (refused == 0) first_refused_sequence = c.sequence();
+    ++refused;
+    return;
+  }
+  if (last_axes_ != 0 && r->axes != last_axes_) ++axes_changes;
+  last_axes_ = r->axes;
+  axes = std::max(axes, r->axes);
+  for (int i = 0; i < r->axes; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    const bool first = per_axis.size() <= k;
+    if (first) per_axis.push_back({r->position_m[k], r->position_m[k], 0.0, 0.0});
+    AxisSummary& a = per_axis[k];
+    a.min_position_m = std::min(a.min_position_m, r->position_m[k]);
+    a.max_position_m = std::max(a.max_position_m, r->position_m[k]);
+    a.max_abs_force_N = std::max(a.max_abs_force_N, std::abs(r->force_N[k]));
+    a.max_abs_command_N = std::max(a.max_abs_command_N, std::abs(r->command_N[k]));
   }
 }
 

@@ -44,6 +44,15 @@ struct OverrunSummary {
   std::vector<Bin> seconds_histogram{};  // 0, 1, 2-9, 10-99, >= 100
 };
 
+// One task-space axis over a node's cycles (issue 18): the range of its position and the
+// largest magnitudes of its measured force and of its command.
+struct AxisSummary {
+  double min_position_m{0.0};
+  double max_position_m{0.0};
+  double max_abs_force_N{0.0};
+  double max_abs_command_N{0.0};
+};
+
 // One node's telemetry messages added in log-time order.
 class NodeTelemetryStats {
  public:
@@ -61,6 +70,17 @@ class NodeTelemetryStats {
   std::uint64_t session_id{0};
   bool any{false};                               // any cycle recorded
   std::map<std::string, std::uint64_t> modes{};  // cycles by teleop.v1.NodeMode name
+  // Task-space axes (issue 18): the most of any cycle (1 for one-axis records, 0 before a
+  // cycle), and the cycles whose axes differ from the cycle before (a node restarted with
+  // another configuration).
+  int axes{0};
+  std::uint64_t axes_changes{0};
+  // Records the codec refuses (telemetry::axes_from_proto: more than kMaxAxes axes, or a
+  // per-axis field not holding one entry per axis): counted with their loop timing, left out of
+  // per_axis; the first one's sequence.
+  std::uint64_t refused{0};
+  std::uint64_t first_refused_sequence{0};
+  std::vector<AxisSummary> per_axis{};  // one per axis up to `axes`, over the cycles having it
 
   // nullopt without cycles.
   [[nodiscard]] std::optional<WakeupLatencySummary> wakeup_latency() const;
@@ -73,6 +93,9 @@ class NodeTelemetryStats {
   std::vector<std::int64_t> wakeups_ns_{};
   std::map<std::int64_t, std::pair<std::uint64_t, std::uint64_t>> per_second_{};
   std::int64_t last_sample_ns_{0};
+  int last_axes_{0};
+
+  void add_axes(const v1::CycleRecord& c);
 };
 
 }  // namespace teleop::record

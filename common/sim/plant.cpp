@@ -8,6 +8,8 @@
 #include <string>
 #include <utility>
 
+#include "common/sim/switch_search.hpp"
+
 namespace teleop::sim {
 
 namespace {
@@ -101,23 +103,6 @@ inline Next propagate(const Plant::Propagator& p, double x, double v, double net
                       double ramp) noexcept {
   return {x + (p.x[0] * v + p.x[1] * net + p.x[2] * ramp),
           p.v[0] * v + p.v[1] * net + p.v[2] * ramp};
-}
-
-// g > 0 at both ends of a chunk of length dt with slopes d0, d1: if g' rises through zero
-// inside (an interior minimum; g' is monotone over a guard interval), the lower bounds
-// g0 + d0 t and g1 - d1 (dt - t) meet at the lowest g can reach.
-bool may_dip(double g0, double d0, double g1, double d1, double dt) noexcept {
-  if (!(d0 < 0.0 && d1 > 0.0)) return false;
-  const double t = std::clamp((g0 - g1 + d1 * dt) / (d1 - d0), 0.0, dt);
-  return g0 + d0 * t <= 0.0;
-}
-
-// g > 0 at both ends and |g'| <= rate over the chunk: g >= (g0 + g1 - rate dt) / 2 inside.
-// Complete where may_dip is not (g' may change sign twice: a position under a ramped force
-// approaches the wall, turns, and leaves again), at the price of looking closer whenever the
-// device is within a chunk's travel of the surface.
-bool may_reach(double g0, double g1, double rate, double dt) noexcept {
-  return g0 + g1 - rate * dt <= 0.0;
 }
 
 // Builds the message only on failure: validate() runs on the RT path when the malicious user
@@ -386,21 +371,22 @@ void Plant::step_substeps(const Input& in) noexcept {
 }
 
 void Plant::step_events(const Input& in) noexcept {
-  const std::uint64_t end = kTicksPerPeriod;
   const double tick_s = std::ldexp(period_s_, -kTickBits);
   const double fc = params_.coulomb_friction_N;
   const double ramp = in.slope_N_per_s;
   double& x = state_.position_m;
   double& v = state_.velocity_m_per_s;
-  std::uint64_t t = 0;
+  EventClock clock{.end = kTicksPerPeriod};
+  std::uint64_t& t = clock.t;
+  const std::uint64_t end = clock.end;
   int events = 0;
-  int work = 0;
-  bool frozen = false;  // Zeno guard: past the event budget, finish frozen-mode with corrections
   const auto count_event = [&]() {
     ++events;
-    if (events >= kMaxEventsPerStep) frozen = true;
+    if (events >= kMaxEventsPerStep) clock.frozen = true;
   };
   const auto seconds = [&](std::uint64_t ticks) { return static_cast<double>(ticks) * tick_s; };
+  Next next{};
+  Next past{};
   while (t < end) {
     const Mode mode = classify(seconds(t), in);
     if (mode.resting) {
@@ -412,67 +398,35 @@ void Plant::step_events(const Input& in) noexcept {
       } else if (ramp < 0.0) {
         wait_s = (-fc - p) / ramp;
       }
-      if (frozen || !(wait_s < seconds(end - t))) break;
+      if (clock.frozen || !(wait_s < seconds(end - t))) break;
       const auto ticks = static_cast<std::uint64_t>(std::max(0.0, wait_s) / tick_s) + 1;
       t = std::min(end, t + ticks);
       count_event();
       continue;
     }
     const ModeCache& cache = cache_[mode.contact ? 1 : 0];
-    const auto advance = [&](std::uint64_t size) {
-      const auto level = static_cast<std::size_t>(kTickBits - std::countr_zero(size));
-      return propagate(cache.dyadic[level], x, v, net_drive(mode, x, seconds(t), in), ramp);
-    };
     const std::uint64_t guard = std::uint64_t{1} << (kTickBits - cache.guard_level);
-    // Depth-first search for the first switch: a chunk whose end is past a switch, or that may
-    // hide one inside, is halved; accepted chunks grow back (alignment keeps them dyadic). A
-    // one-tick chunk that ends past a switch is the switch: continue from its far side. Where
-    // rounding disagrees (short steps that lose sub-ulp motion never reach a crossing a longer
-    // step saw), arriving at the end of the nearest chunk seen past a switch takes that state.
-    std::uint64_t cap = guard;
-    std::uint64_t past_t = 0;  // 0: none pending
-    Next past{};
-    while (t < end) {
-      std::uint64_t chunk = t == 0 ? end : (t & (~t + 1));
-      chunk = std::min(chunk, cap);
-      while (chunk > end - t) chunk >>= 1;
-      Next next = advance(chunk);
-      if (++work > kMaxWorkPerStep) frozen = true;
-      if (frozen) {
-        x = next.x;
-        v = next.v;
-        t += chunk;
-        correct(mode);
-        break;  // re-classify after every frozen chunk
-      }
-      bool ok = valid(mode, next.x, next.v);
-      if (chunk > 1 &&
-          (!ok || may_hide_event(mode, seconds(t), x, v, seconds(t + chunk), next.x, next.v, in))) {
-        if (!ok) {
-          past = next;
-          past_t = t + chunk;
-        }
-        cap = chunk >> 1;
-        continue;
-      }
-      if (ok && t + chunk == past_t) {
-        next = past;
-        ok = false;
-      }
-      x = next.x;
-      v = next.v;
-      t += chunk;
-      if (ok) {
-        cap = std::min(guard, cap << 1);
-        continue;
-      }
-      if (fc > 0.0 && mode.sign != 0 && static_cast<double>(mode.sign) * v <= 0.0) v = 0.0;
-      count_event();
-      break;
-    }
+    const SwitchSearchOps ops{
+        [&](std::uint64_t t0, std::uint64_t size, Next& out) {  // advance
+          const auto level = static_cast<std::size_t>(kTickBits - std::countr_zero(size));
+          out = propagate(cache.dyadic[level], x, v, net_drive(mode, x, seconds(t0), in), ramp);
+        },
+        [&](std::uint64_t /*t1*/, const Next& s) { return valid(mode, s.x, s.v); },
+        [&](std::uint64_t t0, std::uint64_t t1, const Next& s) {  // may_hide
+          return may_hide_event(mode, seconds(t0), x, v, seconds(t1), s.x, s.v, in);
+        },
+        [&](const Next& s) {  // accept
+          x = s.x;
+          v = s.v;
+        },
+        [&]() { correct(mode); },  // on_frozen
+        [&]() {                    // on_switch
+          if (fc > 0.0 && mode.sign != 0 && static_cast<double>(mode.sign) * v <= 0.0) v = 0.0;
+        }};
+    if (advance_to_switch<kMaxWorkPerStep>(clock, guard, next, past, ops)) count_event();
   }
   output_.events = events;
-  output_.event_limit_hit = frozen;
+  output_.event_limit_hit = clock.frozen;
   total_events_ += static_cast<std::uint64_t>(events);
 }
 

@@ -19,6 +19,14 @@ const char* to_string(Structure s) {
   return "bilateral";
 }
 
+Structure structure_of(bool master_feels_slave, bool slave_follows_master, bool master_actuated,
+                       bool slave_in_loop) {
+  if (master_feels_slave && slave_follows_master) return Structure::kBilateral;
+  if (master_actuated && slave_in_loop) return Structure::kDecoupled;
+  if (master_actuated) return Structure::kMasterOnly;
+  return Structure::kSlaveOnly;
+}
+
 DiscreteModel::DiscreteModel(const TeleopParams& params, bool master_wall_used,
                              bool slave_wall_used)
     : p_(params), period_s_(params.period_s()) {
@@ -40,15 +48,8 @@ DiscreteModel::DiscreteModel(const TeleopParams& params, bool master_wall_used,
   // it is analysed only when its own fixture is what is asked about.
   const bool slave_in_loop = slave_follows_master || slave_wall_used ||
                              p_.slave_fixture.stiffness_N_per_m != 0.0 || !master_actuated;
-  if (master_feels_slave && slave_follows_master) {
-    structure_ = Structure::kBilateral;
-  } else if (master_actuated && slave_in_loop) {
-    structure_ = Structure::kDecoupled;
-  } else if (master_actuated) {
-    structure_ = Structure::kMasterOnly;
-  } else {
-    structure_ = Structure::kSlaveOnly;
-  }
+  structure_ =
+      structure_of(master_feels_slave, slave_follows_master, master_actuated, slave_in_loop);
 }
 
 ZohPlant DiscreteModel::master_plant(const HumanImpedance& human) const {
@@ -59,23 +60,9 @@ ZohPlant DiscreteModel::master_plant(const HumanImpedance& human) const {
 
 std::vector<ModelBlock> DiscreteModel::build(const ZohPlant& master_plant, double kmvf,
                                              double ksvf) const {
-  std::vector<ModelBlock> blocks;
-  switch (structure_) {
-    case Structure::kBilateral:
-      blocks.push_back(build_block(true, true, master_plant, kmvf, ksvf));
-      break;
-    case Structure::kDecoupled:
-      blocks.push_back(build_block(true, false, master_plant, kmvf, ksvf));
-      blocks.push_back(build_block(false, true, master_plant, kmvf, ksvf));
-      break;
-    case Structure::kSlaveOnly:
-      blocks.push_back(build_block(false, true, master_plant, kmvf, ksvf));
-      break;
-    case Structure::kMasterOnly:
-      blocks.push_back(build_block(true, false, master_plant, kmvf, ksvf));
-      break;
-  }
-  return blocks;
+  return blocks_of<ModelBlock>(structure_, [&](bool with_master, bool with_slave) {
+    return build_block(with_master, with_slave, master_plant, kmvf, ksvf);
+  });
 }
 
 ModelBlock DiscreteModel::build_block(bool with_master, bool with_slave,

@@ -22,6 +22,34 @@ enum class Structure {
 
 [[nodiscard]] const char* to_string(Structure s);
 
+// The structure from the decisions the one-axis and the n-axis models make alike: both sides
+// feed back on each other (bilateral), else both are in the loop (decoupled), else the master
+// alone if it is actuated, else the slave alone.
+[[nodiscard]] Structure structure_of(bool master_feels_slave, bool slave_follows_master,
+                                     bool master_actuated, bool slave_in_loop);
+
+// The blocks of a structure, in their order: build_block(with_master, with_slave) for each.
+template <class Block, class BuildBlock>
+[[nodiscard]] std::vector<Block> blocks_of(Structure s, const BuildBlock& build_block) {
+  std::vector<Block> blocks;
+  switch (s) {
+    case Structure::kBilateral:
+      blocks.push_back(build_block(true, true));
+      break;
+    case Structure::kDecoupled:
+      blocks.push_back(build_block(true, false));
+      blocks.push_back(build_block(false, true));
+      break;
+    case Structure::kSlaveOnly:
+      blocks.push_back(build_block(false, true));
+      break;
+    case Structure::kMasterOnly:
+      blocks.push_back(build_block(true, false));
+      break;
+  }
+  return blocks;
+}
+
 // One block of the closed loop: the matrix and how many of the paper's states it leaves out.
 struct ModelBlock {
   Eigen::MatrixXd a{};

@@ -5,30 +5,21 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <sstream>
 #include <stdexcept>
 #include <string>
+
+#include "common/stability/identify_detail.hpp"
 
 namespace teleop::stability {
 namespace {
 
-// A condition number of the column-normalised D above this means x'' and x' are proportional
-// to within 1e-8 of a unit vector: m and b cannot be told apart.
-constexpr double kMaxConditionNumber = 1e8;
-// Derivatives this small against the position's scale are rounding, not motion.
-constexpr double kNegligibleRelative = 1e-10;
+using namespace detail;  // the bounds and str() shared with identify_axes.cpp
+
 // Time steps may differ from the mean by this fraction of it.
 constexpr double kTimeStepTolerance = 0.01;
-constexpr int kMaxSmoothingPasses = 1000;
 constexpr std::size_t kDifferenceHalfWidth = 2;  // five-point stencil
 // More rows than parameters, so that a run's r^2 means something.
 constexpr std::size_t kMinRowsPerRun = 3;
-
-[[nodiscard]] std::string str(double value) {
-  std::ostringstream os;
-  os << value;
-  return os.str();
-}
 
 [[nodiscard]] std::invalid_argument run_error(std::size_t run, const std::string& what) {
   return std::invalid_argument("identify: run " + std::to_string(run + 1) + ": " + what);

@@ -3,6 +3,9 @@
 #include <zlib.h>
 
 #include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <string>
 
 #include "teleop/v1/node_state.pb.h"
 
@@ -43,6 +46,104 @@ std::uint32_t checksum(std::string_view bytes) {
       ::crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
 }
 
+// Equal bit for bit (a NaN equals itself here; 0.0 and -0.0 differ).
+bool same_bits(double a, double b) {
+  std::uint64_t x = 0;
+  std::uint64_t y = 0;
+  std::memcpy(&x, &a, sizeof x);
+  std::memcpy(&y, &b, sizeof y);
+  return x == y;
+}
+
+// The number of task-space axes a parsed state carries, or 0 if its axis fields break the rule
+// of node_state.proto: absent axes means one axis and no repeated fields; present, 1..kMaxAxes
+// with every repeated field that long and entry 0 equal to the scalar fields.
+int wire_axes(const teleop::v1::NodeState& m) {
+  const int positions = m.positions_m_size();
+  const int velocities = m.velocities_m_per_s_size();
+  const int forces = m.forces_n_size();
+  if (!m.has_axes()) return positions == 0 && velocities == 0 && forces == 0 ? 1 : 0;
+  if (m.axes() < 1 || m.axes() > static_cast<std::uint32_t>(kMaxAxes)) return 0;
+  const int n = static_cast<int>(m.axes());
+  if (positions != n || velocities != n || forces != n) return 0;
+  if (!same_bits(m.positions_m(0), m.position_m()) ||
+      !same_bits(m.velocities_m_per_s(0), m.velocity_m_per_s()) ||
+      !same_bits(m.forces_n(0), m.force_n())) {
+    return 0;
+  }
+  return n;
+}
+
+bool all_finite(const google::protobuf::RepeatedField<double>& values) {
+  for (const double v : values) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+
+bool physical_fields_finite(const teleop::v1::NodeState& m) {
+  for (const double v : {m.position_m(), m.velocity_m_per_s(), m.force_n(),
+                         m.fixture().penetration_m(), m.fixture().force_n()}) {
+    if (!std::isfinite(v)) return false;
+  }
+  return all_finite(m.positions_m()) && all_finite(m.velocities_m_per_s()) &&
+         all_finite(m.forces_n());
+}
+
+void set_axes(teleop::v1::NodeState& m, const NodeStateRecord& r) {
+  if (r.axes < 1 || r.axes > kMaxAxes) {
+    throw std::invalid_argument("NodeStateRecord.axes must be 1.." + std::to_string(kMaxAxes) +
+                                ", got " + std::to_string(r.axes));
+  }
+  if (r.axes == 1) {  // today's bytes: the scalars alone
+    m.set_position_m(r.position_m);
+    m.set_velocity_m_per_s(r.velocity_m_per_s);
+    m.set_force_n(r.force_N);
+    return;
+  }
+  m.set_position_m(r.positions_m[0]);
+  m.set_velocity_m_per_s(r.velocities_m_per_s[0]);
+  m.set_force_n(r.forces_N[0]);
+  m.set_axes(static_cast<std::uint32_t>(r.axes));
+  const auto n = static_cast<std::size_t>(r.axes);
+  for (std::size_t j = 0; j < n; ++j) {
+    m.add_positions_m(r.positions_m[j]);
+    m.add_velocities_m_per_s(r.velocities_m_per_s[j]);
+    m.add_forces_n(r.forces_N[j]);
+  }
+}
+
+void to_record(const teleop::v1::NodeState& m, int axes, NodeStateRecord& r) {
+  r.session_id = m.session_id();
+  r.sequence = m.sequence();
+  r.sample_time_ns = m.sample_time_ns();
+  r.last_peer_sequence = m.last_peer_sequence();
+  r.peer_age_ns = m.peer_age_ns();
+  r.role = from_proto(m.role());
+  r.mode = static_cast<int>(m.mode());
+  r.position_m = m.position_m();
+  r.velocity_m_per_s = m.velocity_m_per_s();
+  r.force_N = m.force_n();
+  r.fixture_in_contact = m.fixture().in_contact();
+  r.fixture_penetration_m = m.fixture().penetration_m();
+  r.fixture_force_N = m.fixture().force_n();
+  r.clutched = m.clutched();
+  r.fault_flags = m.fault_flags();
+  r.config_fingerprint = m.config_fingerprint();
+  r.parameter_change_id = m.parameter_change_id();
+  r.axes = axes;
+  r.positions_m = {};
+  r.velocities_m_per_s = {};
+  r.forces_N = {};
+  r.set_axis(0, r.position_m, r.velocity_m_per_s, r.force_N);
+  if (m.has_axes()) {
+    for (int j = 1; j < axes; ++j) {
+      r.set_axis(static_cast<std::size_t>(j), m.positions_m(j), m.velocities_m_per_s(j),
+                 m.forces_n(j));
+    }
+  }
+}
+
 }  // namespace
 
 const char* to_string(Rejection r) {
@@ -57,6 +158,8 @@ const char* to_string(Rejection r) {
       return "wrong_session";
     case Rejection::kStale:
       return "stale";
+    case Rejection::kWrongAxes:
+      return "wrong_axes";
     case Rejection::kCount:
       break;
   }
@@ -72,9 +175,7 @@ std::string encode(const NodeStateRecord& r) {
   m.set_peer_age_ns(r.peer_age_ns);
   m.set_role(to_proto(r.role));
   m.set_mode(static_cast<teleop::v1::NodeMode>(r.mode));
-  m.set_position_m(r.position_m);
-  m.set_velocity_m_per_s(r.velocity_m_per_s);
-  m.set_force_n(r.force_N);
+  set_axes(m, r);
   m.mutable_fixture()->set_in_contact(r.fixture_in_contact);
   m.mutable_fixture()->set_penetration_m(r.fixture_penetration_m);
   m.mutable_fixture()->set_force_n(r.fixture_force_N);
@@ -89,6 +190,15 @@ std::string encode(const NodeStateRecord& r) {
   return bytes;
 }
 
+PeerStateFilter::PeerStateFilter(Role expected_peer, int expected_axes)
+    : expected_(expected_peer), expected_axes_(expected_axes) {
+  if (expected_axes < 1 || expected_axes > kMaxAxes) {
+    throw std::invalid_argument("PeerStateFilter expected_axes must be 1.." +
+                                std::to_string(kMaxAxes) + ", got " +
+                                std::to_string(expected_axes));
+  }
+}
+
 std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_view bytes) {
   auto reject = [&](Rejection r) -> std::optional<Accepted> {
     ++rejected_[static_cast<std::size_t>(r)];
@@ -101,11 +211,11 @@ std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_vie
       checksum(bytes.substr(0, bytes.size() - kCrcFieldBytes)) != m.crc32()) {
     return reject(Rejection::kMalformed);
   }
-  for (const double v : {m.position_m(), m.velocity_m_per_s(), m.force_n(),
-                         m.fixture().penetration_m(), m.fixture().force_n()}) {
-    if (!std::isfinite(v)) return reject(Rejection::kNonFinite);
-  }
+  const int axes = wire_axes(m);
+  if (axes == 0) return reject(Rejection::kMalformed);
+  if (!physical_fields_finite(m)) return reject(Rejection::kNonFinite);
   if (from_proto(m.role()) != expected_) return reject(Rejection::kWrongRole);
+  if (axes != expected_axes_) return reject(Rejection::kWrongAxes);
   Accepted out;
   out.new_session = !session_ || *session_ != m.session_id();
   if (!out.new_session && m.sequence() <= last_sequence_) return reject(Rejection::kStale);
@@ -125,24 +235,7 @@ std::optional<PeerStateFilter::Accepted> PeerStateFilter::accept(std::string_vie
   session_ = m.session_id();
   last_sequence_ = m.sequence();
   ++accepted_;
-  NodeStateRecord& r = out.record;
-  r.session_id = m.session_id();
-  r.sequence = m.sequence();
-  r.sample_time_ns = m.sample_time_ns();
-  r.last_peer_sequence = m.last_peer_sequence();
-  r.peer_age_ns = m.peer_age_ns();
-  r.role = from_proto(m.role());
-  r.mode = static_cast<int>(m.mode());
-  r.position_m = m.position_m();
-  r.velocity_m_per_s = m.velocity_m_per_s();
-  r.force_N = m.force_n();
-  r.fixture_in_contact = m.fixture().in_contact();
-  r.fixture_penetration_m = m.fixture().penetration_m();
-  r.fixture_force_N = m.fixture().force_n();
-  r.clutched = m.clutched();
-  r.fault_flags = m.fault_flags();
-  r.config_fingerprint = m.config_fingerprint();
-  r.parameter_change_id = m.parameter_change_id();
+  to_record(m, axes, out.record);
   return out;
 }
 

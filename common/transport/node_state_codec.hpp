@@ -12,6 +12,7 @@
 #include <string_view>
 
 #include "common/core/rt_safe.hpp"
+#include "common/core/teleop_axes.hpp"
 
 namespace teleop::transport {
 
@@ -38,6 +39,29 @@ struct NodeStateRecord {
   // and the guarded parameter change it runs (0: the file's).
   std::uint64_t config_fingerprint{0};
   std::uint64_t parameter_change_id{0};
+  // Issue 18: n task-space axes (1..kMaxAxes), axis j in entry j of the arrays (entries from
+  // `axes` on are unused). What encode() sends: at axes = 1 the scalar fields above, exactly as a
+  // one-axis node always has (the arrays are not read); at axes > 1 the arrays, with entry 0
+  // also sent as the scalar fields (the scalar members are not read). A received record has both
+  // views filled: the scalars are axis 0 and entry 0 equals them at every n. set_axis() keeps
+  // the two views equal on the sending side too.
+  int axes{1};
+  std::array<double, kMaxAxes> positions_m{};
+  std::array<double, kMaxAxes> velocities_m_per_s{};
+  std::array<double, kMaxAxes> forces_N{};
+
+  // Axis j's position (m), velocity (m/s) and force (N); axis 0 goes to the scalars as well.
+  // j must be < kMaxAxes.
+  TELEOP_RT void set_axis(std::size_t j, double position, double velocity, double force) noexcept {
+    positions_m[j] = position;
+    velocities_m_per_s[j] = velocity;
+    forces_N[j] = force;
+    if (j == 0) {
+      position_m = position;
+      velocity_m_per_s = velocity;
+      force_N = force;
+    }
+  }
 };
 
 [[nodiscard]] std::string encode(const NodeStateRecord& record);
@@ -49,16 +73,19 @@ enum class Rejection : std::uint8_t {
   kWrongRole,     // not from the expected peer role
   kStale,         // sequence not newer than the last accepted one: duplicate, replay, reorder
   kWrongSession,  // from a session of the peer that has ended (a replay from a capture)
+  kWrongAxes,     // a well-formed state with another number of task-space axes than ours
   kCount,
 };
 [[nodiscard]] const char* to_string(Rejection r);
 
-// Accepts only well-formed, finite, newer states from the expected role; a new session id
-// (the peer restarted) is accepted and reported, so the node can drop to safe and require a
-// new engagement. Counts every rejection by reason.
+// Accepts only well-formed, finite, newer states from the expected role with the expected
+// number of task-space axes (1 unless told: a one-axis node's callers are unchanged); a new
+// session id (the peer restarted) is accepted and reported, so the node can drop to safe and
+// require a new engagement. Counts every rejection by reason. An expected_axes outside
+// 1..kMaxAxes throws std::invalid_argument naming it.
 class PeerStateFilter {
  public:
-  explicit PeerStateFilter(Role expected_peer) : expected_(expected_peer) {}
+  explicit PeerStateFilter(Role expected_peer, int expected_axes = 1);
 
   struct Accepted {
     NodeStateRecord record{};
@@ -75,6 +102,7 @@ class PeerStateFilter {
 
  private:
   Role expected_;
+  int expected_axes_{1};
   std::optional<std::uint64_t> session_{};
   std::uint64_t last_sequence_{0};
   std::uint64_t accepted_{0};

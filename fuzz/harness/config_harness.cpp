@@ -7,6 +7,8 @@
 // - every section converter either succeeds or throws ConfigError;
 // - the analysed parameters are finite; a node's period, peer timeout and ramps are positive
 //   (the loader checks their fields' signs);
+// - the n-axis teleoperator's matrices are n x n and finite, its masses symmetric, its plane
+//   normals unit (axes_config.hpp);
 // - printed back in text format, it loads again to the same configuration;
 // - set_fields() applied to an empty configuration reproduces it, or refuses a string it
 //   cannot express (as documented).
@@ -19,6 +21,7 @@
 #include <string_view>
 #include <vector>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/config_loader.hpp"
 #include "common/config/node_loader.hpp"
 #include "common/config/scene_loader.hpp"
@@ -81,6 +84,30 @@ int config(const std::uint8_t* data, std::size_t size) {
   });
   converts_or_refuses([&] { (void)config::to_force_loop_params(loaded); });
   converts_or_refuses([&] { (void)config::to_scene_setup(loaded); });
+  // Several axes (axes_config.hpp): what validation promises of the n-axis teleoperator.
+  converts_or_refuses([&] {
+    const TeleopAxesParams t = config::to_axes_params(loaded);
+    TELEOP_FUZZ_CHECK(t.axes >= 1 && t.axes <= kMaxAxes, "axes outside [1, 6] after validation");
+    const Eigen::Index n = t.axes;
+    for (const DeviceAxesParams* d : {&t.master_device, &t.slave_device}) {
+      TELEOP_FUZZ_CHECK(d->mass_kg.rows() == n && d->mass_kg.cols() == n &&
+                            d->mass_kg.allFinite() && d->mass_kg == d->mass_kg.transpose(),
+                        "a mass matrix not n x n, finite and symmetric after validation");
+      TELEOP_FUZZ_CHECK(d->damping_Ns_per_m.size() == n && d->coulomb_N.size() == n,
+                        "a per-axis list of the wrong size after validation");
+    }
+    for (const auto* planes : {&t.master_planes, &t.slave_planes}) {
+      for (const PlaneFixtureParams& p : *planes) {
+        TELEOP_FUZZ_CHECK(p.normal.size() == n && std::abs(p.normal.norm() - 1.0) < 1e-12,
+                          "a plane normal not a unit n-vector after validation");
+      }
+    }
+    for (const Eigen::MatrixXd* g : {&t.gains.kpm, &t.gains.kps, &t.gains.kdm, &t.gains.kds,
+                                     &t.gains.kvm, &t.gains.kvs, &t.gains.kfm}) {
+      TELEOP_FUZZ_CHECK(g->rows() == n && g->cols() == n && g->allFinite(),
+                        "a gain matrix not n x n and finite after validation");
+    }
+  });
   for (const transport::Role role : {transport::Role::kMaster, transport::Role::kSlave}) {
     converts_or_refuses([&] {
       const config::NodeSetup n = config::to_node_setup(loaded, role);

@@ -3,12 +3,13 @@
 // Input: a stream of frames, each [u8 control][u16 little-endian length][length bytes] (a short
 // last frame takes what is left). Control bit 0: append a valid CRC field (tag 0x7D, CRC-32 of
 // the bytes before it) so the fuzzer gets past the checksum to the finite, role, session and
-// sequence checks. Every frame goes to two receivers, one expecting the master and one the
-// slave. Checked on every frame:
+// sequence checks. Every frame goes to four receivers: expecting the master or the slave, with
+// one task-space axis or three (issue 18). Checked on every frame:
 // - exactly one counter moves: accepted, or one rejection reason;
 // - an accepted state is from the expected role, has non-zero session and sequence, finite
-//   physical fields, a sequence newer than the last accepted one of its session (or a new
-//   session that is not the current one), and ends with its CRC field;
+//   physical fields on every axis, the receiver's axis count, axis 0 in the scalar fields and
+//   nothing beyond the last axis, a sequence newer than the last accepted one of its session (or a
+//   new session that is not the current one), and ends with its CRC field;
 // - the same bytes offered again are rejected as stale (a duplicate or replay);
 // - encode() of the accepted record is accepted by a fresh receiver and gives the same record.
 #include <cmath>
@@ -53,7 +54,9 @@ bool same_record(const NodeStateRecord& a, const NodeStateRecord& b) {
          same_bits(a.fixture_penetration_m, b.fixture_penetration_m) &&
          same_bits(a.fixture_force_N, b.fixture_force_N) && a.clutched == b.clutched &&
          a.fault_flags == b.fault_flags && a.config_fingerprint == b.config_fingerprint &&
-         a.parameter_change_id == b.parameter_change_id;
+         a.parameter_change_id == b.parameter_change_id && a.axes == b.axes &&
+         same_bits(a.positions_m, b.positions_m) &&
+         same_bits(a.velocities_m_per_s, b.velocities_m_per_s) && same_bits(a.forces_N, b.forces_N);
 }
 
 std::uint32_t crc32_of(std::string_view bytes) {
@@ -68,8 +71,9 @@ std::uint32_t crc32_of(std::string_view bytes) {
 
 // One receiver and what the harness knows it accepted.
 struct Receiver {
-  explicit Receiver(Role r) : role(r), filter(r) {}
+  Receiver(Role r, int n) : role(r), axes(n), filter(r, n) {}
   Role role;
+  int axes;
   PeerStateFilter filter;
   std::optional<std::uint64_t> session{};
   std::uint64_t last_sequence{0};
@@ -93,6 +97,17 @@ struct Receiver {
                            r.fixture_force_N}) {
       TELEOP_FUZZ_CHECK(std::isfinite(v), "non-finite physical field accepted");
     }
+    TELEOP_FUZZ_CHECK(r.axes == axes, "accepted with another axis count");
+    for (std::size_t j = 0; j < r.positions_m.size(); ++j) {
+      for (const double v : {r.positions_m[j], r.velocities_m_per_s[j], r.forces_N[j]}) {
+        TELEOP_FUZZ_CHECK(std::isfinite(v), "non-finite axis accepted");
+        if (j >= static_cast<std::size_t>(axes)) TELEOP_FUZZ_CHECK(v == 0.0, "beyond the axes");
+      }
+    }
+    TELEOP_FUZZ_CHECK(same_bits(r.position_m, r.positions_m[0]) &&
+                          same_bits(r.velocity_m_per_s, r.velocities_m_per_s[0]) &&
+                          same_bits(r.force_N, r.forces_N[0]),
+                      "the scalar fields are not axis 0");
     TELEOP_FUZZ_CHECK(
         bytes.size() >= 5 && static_cast<std::uint8_t>(bytes[bytes.size() - 5]) == 0x7D,
         "accepted without the CRC field last on the wire");
@@ -112,7 +127,7 @@ struct Receiver {
                       "a duplicate not counted as stale");
 
     // encode -> accept round trip.
-    PeerStateFilter fresh(role);
+    PeerStateFilter fresh(role, axes);
     const std::string encoded = transport::encode(r);
     const auto again = fresh.accept(encoded);
     TELEOP_FUZZ_CHECK(again.has_value(), "encode() of an accepted state is rejected");
@@ -124,8 +139,8 @@ struct Receiver {
 }  // namespace
 
 int node_state(const std::uint8_t* data, std::size_t size) {
-  Receiver from_master(Role::kMaster);
-  Receiver from_slave(Role::kSlave);
+  Receiver receivers[] = {
+      {Role::kMaster, 1}, {Role::kSlave, 1}, {Role::kMaster, 3}, {Role::kSlave, 3}};
   std::size_t pos = 0;
   for (std::size_t frames = 0; pos < size && frames < kMaxFrames; ++frames) {
     const std::uint8_t control = data[pos++];
@@ -146,8 +161,7 @@ int node_state(const std::uint8_t* data, std::size_t size) {
       for (unsigned i = 0; i < 4; ++i)
         frame.push_back(static_cast<char>((crc >> (8U * i)) & 0xFFU));
     }
-    from_master.offer(frame);
-    from_slave.offer(frame);
+    for (Receiver& r : receivers) r.offer(frame);
   }
   return 0;
 }

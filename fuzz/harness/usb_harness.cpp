@@ -11,6 +11,10 @@
 //   packet is counted once (accepted or refused by reason), the output force is finite, within
 //   the actuator's full scale and zero while the watchdog is tripped, and every report the
 //   emulator sends decodes on the host, in sequence.
+// - version 2 (n channels): every input and packet also through decode_v2 (both types) and
+//   decode_any: a packet that decodes has the size its n gives and re-encodes to its bytes; and
+//   through a second emulator speaking v2 with 3 channels, checked as the first (every channel's
+//   output finite and within full scale, every report it sends decodes in its version).
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -94,6 +98,70 @@ bool check_report(std::span<const std::uint8_t> bytes, usb::ReportPacket& r) {
   return true;
 }
 
+void check_v2(std::span<const std::uint8_t> bytes) {
+  usb::PacketBuffer again{};
+  std::size_t size = 0;
+  usb::CommandPacketV2 c;
+  if (usb::decode_v2(bytes, c) == PacketError::kNone) {
+    TELEOP_FUZZ_CHECK(c.channels >= 1 && c.channels <= usb::kMaxChannels, "v2 command n");
+    TELEOP_FUZZ_CHECK(bytes.size() == usb::command_size_v2(c.channels), "v2 command size");
+    TELEOP_FUZZ_CHECK(usb::encode(c, again, size) == PacketError::kNone, "v2 command re-encodes");
+    TELEOP_FUZZ_CHECK(size == bytes.size() && std::equal(bytes.begin(), bytes.end(), again.begin()),
+                      "decode/encode changed a v2 command's bytes");
+  }
+  usb::ReportPacketV2 r;
+  if (usb::decode_v2(bytes, r) == PacketError::kNone) {
+    TELEOP_FUZZ_CHECK(bytes.size() == usb::report_size_v2(r.channels), "v2 report size");
+    TELEOP_FUZZ_CHECK(usb::encode(r, again, size) == PacketError::kNone, "v2 report re-encodes");
+    TELEOP_FUZZ_CHECK(size == bytes.size() && std::equal(bytes.begin(), bytes.end(), again.begin()),
+                      "decode/encode changed a v2 report's bytes");
+    const usb::Scaling scaling{};
+    for (std::size_t i = 0; i < r.channels; ++i) {
+      TELEOP_FUZZ_CHECK(std::abs(usb::adc_to_force_N(r.load_cell_adc[i], scaling)) <=
+                                scaling.load_cell_full_scale_N &&
+                            std::isfinite(usb::counts_to_position_m(r.encoder_counts[i], scaling)),
+                        "v2 report channel out of range");
+    }
+  }
+  std::uint8_t version = 0;
+  if (usb::decode_any(bytes, c, version) == PacketError::kNone) {
+    TELEOP_FUZZ_CHECK(version == bytes[2], "decode_any's version is not byte 2");
+    TELEOP_FUZZ_CHECK(version == usb::kProtocolVersion2 || c.channels == 1, "v1 as n = 1");
+  }
+}
+
+// The v2 emulator's step checks, and every report it sent decodes in its version, in sequence.
+void check_v2_emulator(usb::Emulator& emulator, BusEnd& host_end, usb::SequenceTracker& reports,
+                       const usb::EmulatorConfig& config) {
+  for (std::size_t i = 0; i < emulator.channels(); ++i) {
+    const double out = emulator.output_force_N(i);
+    TELEOP_FUZZ_CHECK(std::isfinite(out) && std::abs(out) <= config.scaling.actuator_full_scale_N,
+                      "v2: output force beyond the actuator's full scale");
+    TELEOP_FUZZ_CHECK(!emulator.watchdog_tripped() || out == 0.0, "v2: output while tripped");
+  }
+  usb::PacketBuffer buffer{};
+  std::size_t received = 0;
+  while (host_end.receive(buffer, received, std::chrono::milliseconds{0}).ok()) {
+    const std::span<const std::uint8_t> bytes(buffer.data(), received);
+    std::uint32_t sequence = 0;
+    if (received >= 3 && buffer[2] == usb::kProtocolVersion2) {
+      usb::ReportPacketV2 report;
+      TELEOP_FUZZ_CHECK(usb::decode_v2(bytes, report) == PacketError::kNone,
+                        "the v2 emulator sent a v2 report the host refuses");
+      TELEOP_FUZZ_CHECK(report.channels == emulator.channels(), "v2 report of another n");
+      sequence = report.sequence;
+    } else {
+      usb::ReportPacket report;
+      TELEOP_FUZZ_CHECK(usb::decode(bytes, report) == PacketError::kNone,
+                        "the v2 emulator sent a v1 report the host refuses");
+      sequence = report.sequence;
+    }
+    const auto result = reports.accept(sequence);
+    TELEOP_FUZZ_CHECK(result.error == PacketError::kNone && result.lost == 0,
+                      "the v2 emulator's reports out of sequence");
+  }
+}
+
 }  // namespace
 
 int usb(const std::uint8_t* data, std::size_t size) {
@@ -101,6 +169,7 @@ int usb(const std::uint8_t* data, std::size_t size) {
   check_command(whole);
   usb::ReportPacket ignored;
   (void)check_report(whole, ignored);
+  check_v2(whole);
 
   const usb::EmulatorConfig config{};
   Bus bus;
@@ -108,6 +177,14 @@ int usb(const std::uint8_t* data, std::size_t size) {
   usb::Emulator emulator(config, std::make_unique<BusEnd>(bus.to_host, bus.to_device));
   usb::SequenceTracker fuzzed_reports;  // the input's packets read as reports
   usb::SequenceTracker device_reports;  // what the emulator sends
+  usb::EmulatorConfig config_v2{};
+  config_v2.protocol_version = usb::kProtocolVersion2;
+  config_v2.channels = 3;
+  Bus bus_v2;
+  BusEnd host_v2(bus_v2.to_device, bus_v2.to_host);
+  usb::Emulator emulator_v2(config_v2, std::make_unique<BusEnd>(bus_v2.to_host, bus_v2.to_device));
+  usb::SequenceTracker device_reports_v2;
+  std::uint64_t delivered_v2 = 0;
   std::uint64_t delivered = 0;
   std::size_t pos = 0;
   for (std::size_t n = 0; n < kMaxPackets && pos < size; ++n) {
@@ -116,6 +193,7 @@ int usb(const std::uint8_t* data, std::size_t size) {
     pos += 1 + length;
 
     check_command(packet);
+    check_v2(packet);
     usb::ReportPacket r;
     if (check_report(packet, r)) {
       const std::uint32_t newest = fuzzed_reports.newest();
@@ -153,6 +231,13 @@ int usb(const std::uint8_t* data, std::size_t size) {
       TELEOP_FUZZ_CHECK(result.error == PacketError::kNone && result.lost == 0,
                         "the emulator's reports out of sequence");
     }
+
+    if (host_v2.send(packet, std::chrono::milliseconds{0}).ok()) ++delivered_v2;
+    emulator_v2.step(std::chrono::milliseconds{1});
+    const usb::Emulator::Stats& s2 = emulator_v2.stats();
+    TELEOP_FUZZ_CHECK(s2.commands_accepted + s2.rejected.total_rejected() == delivered_v2,
+                      "v2: a command not counted exactly once");
+    check_v2_emulator(emulator_v2, host_v2, device_reports_v2, config_v2);
   }
   return 0;
 }

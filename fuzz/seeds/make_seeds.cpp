@@ -22,6 +22,7 @@
 #include "common/record/mcap_writer.hpp"
 #include "common/transport/node_state_codec.hpp"
 #include "teleop/v1/config.pb.h"
+#include "teleop/v1/node_state.pb.h"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
 
@@ -105,6 +106,83 @@ void node_state_seeds() {
   write("node_state", "zero_session", frame(transport::encode(state(Role::kSlave, 0, 2))));
   const std::string whole = transport::encode(state(Role::kSlave, b, 2));
   write("node_state", "truncated", frame(whole.substr(0, whole.size() / 2)));
+}
+
+// Issue 18: three task-space axes (the harness's three-axis receivers accept these).
+transport::NodeStateRecord state3(transport::Role role, std::uint64_t session, std::uint64_t seq) {
+  transport::NodeStateRecord r = state(role, session, seq);
+  r.axes = 3;
+  for (std::size_t j = 0; j < 3; ++j) {
+    const double k = static_cast<double>(j + 1);
+    r.set_axis(j, k * r.position_m, -0.01 * k, 0.5 * k);
+  }
+  return r;
+}
+
+// A three-axis slave state as protobuf's message, the CRC field left for the harness to append
+// (control bit 0): the hostile seeds break one axis field at a time.
+v1::NodeState three_axis_message(std::uint64_t seq) {
+  v1::NodeState m;
+  m.set_session_id(0x5EC0'0003'0A0E'5EEDULL);
+  m.set_sequence(seq);
+  m.set_role(v1::SLAVE);
+  m.set_mode(v1::ENGAGED);
+  m.set_position_m(0.01);
+  m.set_velocity_m_per_s(-0.01);
+  m.set_force_n(0.5);
+  m.set_axes(3);
+  for (int j = 1; j <= 3; ++j) {
+    m.add_positions_m(0.01 * j);
+    m.add_velocities_m_per_s(-0.01 * j);
+    m.add_forces_n(0.5 * j);
+  }
+  return m;
+}
+
+void node_state_axes_seeds() {
+  using transport::Role;
+  const std::uint64_t a = 0x5EC0'0003'D00D'F00DULL;
+  write("node_state", "axes3_master_one", frame(transport::encode(state3(Role::kMaster, a, 1))));
+  write("node_state", "axes3_slave_one", frame(transport::encode(state3(Role::kSlave, a, 4))));
+  // A three-axis session with a duplicate, then a one-axis peer on the same session.
+  std::string stream;
+  for (const std::uint64_t seq : {1U, 2U, 4U, 4U}) {
+    stream += frame(transport::encode(state3(Role::kSlave, a, seq)));
+  }
+  stream += frame(transport::encode(state(Role::kSlave, a, 5)));
+  stream += frame(transport::encode(state3(Role::kSlave, a, 6)));
+  write("node_state", "axes3_session_and_one_axis_peer", stream);
+  // Six axes, which every receiver of the harness rejects as the wrong count.
+  transport::NodeStateRecord six = state3(Role::kMaster, a, 2);
+  six.axes = 6;
+  for (std::size_t j = 3; j < 6; ++j) six.set_axis(j, 0.001 * static_cast<double>(j), 0.0, 0.0);
+  write("node_state", "axes6", frame(transport::encode(six)));
+  auto nan = state3(Role::kSlave, a, 3);
+  nan.positions_m[2] = std::numeric_limits<double>::quiet_NaN();
+  nan.forces_N[1] = -std::numeric_limits<double>::infinity();
+  write("node_state", "axes3_non_finite", frame(transport::encode(nan)));
+  // Hostile axis fields, each otherwise valid, with the harness appending the CRC.
+  write("node_state", "axes3_crc_appended", frame(three_axis_message(1).SerializeAsString(), 1));
+  v1::NodeState m = three_axis_message(2);
+  m.mutable_velocities_m_per_s()->RemoveLast();
+  write("node_state", "axes3_lengths_differ", frame(m.SerializeAsString(), 1));
+  m = three_axis_message(2);
+  m.set_axes(7);
+  for (int j = 4; j <= 7; ++j) {
+    m.add_positions_m(0.01 * j);
+    m.add_velocities_m_per_s(0.0);
+    m.add_forces_n(0.0);
+  }
+  write("node_state", "axes7", frame(m.SerializeAsString(), 1));
+  m = three_axis_message(2);
+  m.set_axes(0);
+  write("node_state", "axes0", frame(m.SerializeAsString(), 1));
+  m = three_axis_message(2);
+  m.set_axes(0xFFFFFFFFU);
+  write("node_state", "axes_max_uint32", frame(m.SerializeAsString(), 1));
+  m = three_axis_message(2);
+  m.set_position_m(0.02);
+  write("node_state", "axes3_scalar_not_axis0", frame(m.SerializeAsString(), 1));
 }
 
 // ---- commands: [u8 selector][protobuf] ----
@@ -318,6 +396,73 @@ void usb_seeds() {
   write("usb", "oversized", oversized + command(2, CommandFlags::kResync, 0));
 }
 
+// ---- usb, protocol version 2 (n channels): the same [u8 length][packet] stream ----
+
+std::string command_v2(std::uint32_t seq, std::uint8_t flags, std::uint8_t n, std::int16_t dac) {
+  usb::CommandPacketV2 c;
+  c.sequence = seq;
+  c.flags = flags;
+  c.channels = n;
+  for (std::size_t i = 0; i < n; ++i) {
+    c.actuator_dac[i] = static_cast<std::int16_t>(i % 2 == 0 ? dac : -dac);
+  }
+  usb::PacketBuffer b{};
+  std::size_t size = 0;
+  if (usb::encode(c, b, size) != usb::PacketError::kNone) throw std::runtime_error("command v2");
+  return packet(std::span<const std::uint8_t>(b.data(), size));
+}
+
+std::string report_v2(std::uint32_t seq, std::uint8_t flags, std::uint8_t n, std::int16_t adc) {
+  usb::ReportPacketV2 r;
+  r.sequence = seq;
+  r.device_time_us = 1000ULL * seq;
+  r.flags = flags;
+  r.channels = n;
+  r.last_command_sequence = seq > 0 ? seq - 1 : 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    r.encoder_counts[i] = -1234 * static_cast<std::int32_t>(i + 1);
+    r.load_cell_adc[i] = adc;
+  }
+  usb::PacketBuffer b{};
+  std::size_t size = 0;
+  if (usb::encode(r, b, size) != usb::PacketError::kNone) throw std::runtime_error("report v2");
+  return packet(std::span<const std::uint8_t>(b.data(), size));
+}
+
+void usb_v2_seeds() {
+  using usb::CommandFlags;
+  // A v2 host session at n = 3 (the fuzz harness's v2 emulator has 3 channels): resync, enabled
+  // commands, a duplicate, a command of another n (channel_mismatch), then disabled.
+  std::string session = command_v2(200, CommandFlags::kResync, 3, 0);
+  for (std::uint32_t s = 201; s < 206; ++s) {
+    session += command_v2(s, CommandFlags::kEnable, 3, static_cast<std::int16_t>(5000 * (s - 200)));
+  }
+  session += command_v2(205, CommandFlags::kEnable, 3, 100);
+  session += command_v2(206, CommandFlags::kEnable, 2, 100);
+  session += command_v2(207, 0, 3, 0);
+  write("usb", "v2_command_session", session);
+  // A v1 host, then a v2 host, on the same device.
+  write("usb", "v2_after_v1",
+        command(1, CommandFlags::kResync, 0) + command(2, CommandFlags::kEnable, 700) +
+            command_v2(3, CommandFlags::kEnable, 3, 700));
+  // Reports at every n, 6 filling the 64-byte packet.
+  std::string reports;
+  for (std::uint8_t n = 1; n <= 6; ++n) {
+    reports += report_v2(n, static_cast<std::uint8_t>(usb::ReportFlags::kLoadCellClipped), n,
+                         static_cast<std::int16_t>(n * 1000));
+  }
+  write("usb", "v2_report_stream", reports);
+  write("usb", "v2_bare_command", command_v2(1, CommandFlags::kResync, 6, 0).substr(1));
+  write("usb", "v2_bare_report", report_v2(1, 0, 6, -32767).substr(1));
+  // n = 7 (bad_channels, checked before the CRC), and an n = 3 command cut by one byte.
+  std::string bad_n = command_v2(1, CommandFlags::kResync, 6, 0);
+  bad_n[5] = 7;
+  const std::string cut = command_v2(1, CommandFlags::kResync, 3, 0);
+  std::string truncated(1, static_cast<char>(cut.size() - 2));
+  truncated += cut.substr(1, cut.size() - 2);
+  write("usb", "v2_bad_n_and_cut", bad_n + truncated);
+}
+
 // ---- dictionaries ----
 
 void collect_names(const google::protobuf::Descriptor* d, std::set<std::string>& names,
@@ -349,6 +494,40 @@ void dictionaries() {
                         "e-300", "e9", "e-9", "\\x0a#--set\\x0a", "={}", "true", "0x7fffffff"}) {
     config << '"' << s << "\"\n";
   }
+  // NodeState: field tags (the axis fields of issue 18 among them), axis counts, packed lengths,
+  // the doubles that must never pass, the CRC tag.
+  std::ofstream node_state(g_root / "dict" / "node_state.dict", std::ios::trunc);
+  node_state << "# NodeState tags and values (fuzz_make_seeds).\n";
+  for (const char* s : {"\\x09",
+                        "\\x10",
+                        "\\x30\\x01",
+                        "\\x30\\x02",
+                        "\\x41",
+                        "\\x49",
+                        "\\x51",
+                        "\\x5a",
+                        "\\x81\\x01",
+                        "\\x88\\x01",
+                        "\\x7d",
+                        "\\x90\\x01",
+                        "\\x90\\x01\\x01",
+                        "\\x90\\x01\\x03",
+                        "\\x90\\x01\\x06",
+                        "\\x90\\x01\\x07",
+                        "\\x90\\x01\\xff\\xff\\xff\\xff\\x0f",
+                        "\\x9a\\x01\\x18",
+                        "\\xa2\\x01\\x18",
+                        "\\xaa\\x01\\x18",
+                        "\\x9a\\x01\\x30",
+                        "\\x99\\x01",
+                        "\\xa1\\x01",
+                        "\\xa9\\x01",
+                        "\\x00\\x00\\x00\\x00\\x00\\x00\\xf8\\x7f",
+                        "\\x00\\x00\\x00\\x00\\x00\\x00\\xf0\\x7f",
+                        "\\x00\\x00\\x00\\x00\\x00\\x00\\xf0\\xff",
+                        "\\x00\\x00\\x00\\x00\\x00\\x00\\x00\\x80"}) {
+    node_state << '"' << s << "\"\n";
+  }
   std::ofstream mcap(g_root / "dict" / "mcap.dict", std::ios::trunc);
   mcap << "# MCAP magic, record prefixes and encodings.\n"
        << "\"\\x89MCAP0\\x0d\\x0a\"\n"
@@ -368,10 +547,12 @@ int main(int argc, char** argv) {
   try {
     g_root = argv[1];
     node_state_seeds();
+    node_state_axes_seeds();
     command_seeds();
     config_seeds();
     mcap_seeds();
     usb_seeds();
+    usb_v2_seeds();
     dictionaries();
   } catch (const std::exception& e) {
     std::cerr << "fuzz_make_seeds: " << e.what() << "\n";

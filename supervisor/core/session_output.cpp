@@ -7,8 +7,10 @@
 
 #include <algorithm>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/core/version.hpp"
+#include "supervisor/core/axes_supervision.hpp"
 
 namespace teleop::supervisor {
 namespace {
@@ -87,7 +89,14 @@ std::map<std::string, std::string> teleop_metadata(const config::LoadedConfig& c
   m["version"] = std::string(version());
   m["host"] = host_name();
   m["config_file"] = config.source_name;
-  m["config_fingerprint"] = config::fingerprint_hex(config::control_fingerprint(config));
+  // Several axes: no fingerprint of an n-axis file yet (control_fingerprint is one-axis); the
+  // axes say which form the session's cycles take.
+  if (several_axes(config)) {
+    m["config_fingerprint"] = "";
+    m["axes"] = std::to_string(config::configured_axes(config.config));
+  } else {
+    m["config_fingerprint"] = config::fingerprint_hex(config::control_fingerprint(config));
+  }
   std::string overrides;
   std::string previous;
   for (const auto& [path, assignment] : config.overridden) {
@@ -122,6 +131,13 @@ std::map<std::string, std::string> analysis_metadata(const v1::StabilityReport& 
   m["max_stable_slave_stiffness_N_per_m"] = r.has_max_stable_slave_stiffness_n_per_m()
                                                 ? number(r.max_stable_slave_stiffness_n_per_m())
                                                 : "none";
+  // Several axes: each plane in use against its limit (StabilityReport.planes).
+  if (r.axes() > 1) {
+    m["axes"] = std::to_string(r.axes());
+    for (const v1::PlaneMargin& p : r.planes()) {
+      m[p.side() + "_plane_" + std::to_string(p.index())] = p.description();
+    }
+  }
   return m;
 }
 

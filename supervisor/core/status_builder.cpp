@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
+
+#include "common/telemetry/cycle_codec.hpp"
 
 namespace teleop::supervisor {
 
@@ -29,10 +32,31 @@ MonitorReadings read_monitors(const OscillationMonitor& oscillation,
   return r;
 }
 
+void fill_node_axes(v1::NodeSummary& out, const v1::CycleRecord& cycle, bool is_master,
+                    double position_scaling) {
+  out.clear_axes();
+  out.clear_positions_m();
+  out.clear_forces_n();
+  out.clear_commands_n();
+  out.clear_tracking_errors_m();
+  const std::optional<node::CycleRecordAxes> r = telemetry::axes_from_proto(cycle);
+  if (!r || r->axes < 2) return;
+  out.set_axes(static_cast<std::uint32_t>(r->axes));
+  for (std::size_t i = 0; i < static_cast<std::size_t>(r->axes); ++i) {
+    out.add_positions_m(r->position_m[i]);
+    out.add_forces_n(r->force_N[i]);
+    out.add_commands_n(r->command_N[i]);
+    const double x_m = is_master ? r->position_m[i] : r->peer_position_m[i];
+    const double x_s = is_master ? r->peer_position_m[i] : r->position_m[i];
+    out.add_tracking_errors_m(position_scaling * x_m - x_s);
+  }
+}
+
 NodeSummaryBuilder::NodeSummaryBuilder(bool is_master, double fixture_position_m,
                                        double fixture_stiffness_N_per_m, double window_s,
-                                       double bucket_s)
+                                       double bucket_s, double position_scaling)
     : is_master_(is_master),
+      position_scaling_(position_scaling),
       fixture_position_m_(fixture_position_m),
       fixture_stiffness_N_per_m_(fixture_stiffness_N_per_m),
       bucket_ns_(std::max<std::int64_t>(1, std::llround(bucket_s * 1e9))),
@@ -64,9 +88,18 @@ void NodeSummaryBuilder::add(const v1::Telemetry& t, std::int64_t received_ns) {
     have_cycle_ = true;
     cycle_times_ns_.push_back(ts);
     while (cycle_times_ns_.front() < ts - 1'000'000'000) cycle_times_ns_.pop_front();
-    const auto x = static_cast<float>(c.position_m());
-    const auto f = static_cast<float>(c.force_n());
-    const auto p = static_cast<float>(penetration(c.position_m(), stiffness));
+    // n > 1 axes: the traces are the norms of position and force and the deepest plane's
+    // penetration (the one-axis scalars are 0 in such a record).
+    const bool several = c.axes() > 1;
+    const auto norm = [](const google::protobuf::RepeatedField<double>& v) {
+      double sum = 0.0;
+      for (const double e : v) sum += e * e;
+      return std::sqrt(sum);
+    };
+    const auto x = static_cast<float>(several ? norm(c.positions_m()) : c.position_m());
+    const auto f = static_cast<float>(several ? norm(c.forces_n()) : c.force_n());
+    const auto p = static_cast<float>(several ? c.fixture_penetration_m()
+                                              : penetration(c.position_m(), stiffness));
     const std::int64_t index = ts / bucket_ns_;
     if (buckets_.empty() || index > buckets_.back().index) {
       buckets_.push_back(Bucket{index, x, x, f, f, p, p});
@@ -130,6 +163,7 @@ void NodeSummaryBuilder::fill(v1::NodeSummary& out, std::int64_t now_ns,
     out.set_command_n(newest_cycle_.command_n());
     out.set_fixture_penetration_m(penetration(newest_cycle_.position_m(), stiffness));
     out.set_alignment_error_m(newest_cycle_.alignment_error_m());
+    fill_node_axes(out, newest_cycle_, is_master_, position_scaling_);
   }
   const double bucket_s = static_cast<double>(bucket_ns_) * 1e-9;
   v1::Trace* traces[] = {out.mutable_position_trace_m(), out.mutable_force_trace_n(),

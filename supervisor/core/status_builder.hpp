@@ -29,13 +29,20 @@ struct MonitorReadings {
 [[nodiscard]] MonitorReadings read_monitors(const OscillationMonitor& oscillation,
                                             const PassivityObserver& passivity);
 
+// A node's cycle of n > 1 axes into its summary (NodeSummary.axes and the per-axis lists, the
+// tracking error alpha x_m - x_s per axis from the cycle's own and peer positions); a one-axis or
+// refused record leaves them empty.
+void fill_node_axes(v1::NodeSummary& out, const v1::CycleRecord& cycle, bool is_master,
+                    double position_scaling);
+
 class NodeSummaryBuilder {
  public:
   // `fixture_position_m` and `fixture_stiffness_N_per_m`: this side's configured fixture (the
   // stiffness in force is taken from the telemetry when it carries one). The traces keep the
   // last `window_s` in buckets of `bucket_s`.
+  // `position_scaling`: alpha, for the per-axis tracking errors alpha x_m - x_s of n > 1 axes.
   NodeSummaryBuilder(bool is_master, double fixture_position_m, double fixture_stiffness_N_per_m,
-                     double window_s = 5.0, double bucket_s = 0.05);
+                     double window_s = 5.0, double bucket_s = 0.05, double position_scaling = 1.0);
 
   // One telemetry message, received at `received_ns` on the owner's clock.
   void add(const v1::Telemetry& t, std::int64_t received_ns);
@@ -56,6 +63,7 @@ class NodeSummaryBuilder {
   [[nodiscard]] double penetration(double position_m, double stiffness_N_per_m) const;
 
   bool is_master_;
+  double position_scaling_{1.0};
   double fixture_position_m_;
   double fixture_stiffness_N_per_m_;
   std::int64_t bucket_ns_;

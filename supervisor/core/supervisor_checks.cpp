@@ -66,6 +66,14 @@ void SupervisorCore::check_live() {
 // difference (new or changed) is an alarm naming the fingerprints and, where telemetry shows them,
 // the fields.
 void SupervisorCore::check_configurations() {
+  if (axes_) {
+    const std::string m = axes_configuration_mismatch();
+    if (!m.empty() && m != configuration_mismatch_) {
+      alarm(v1::Alarm::WARNING, "configuration", "system", m + " (arm and engage refused)", {});
+    }
+    configuration_mismatch_ = m;
+    return;
+  }
   ApprovedConfiguration approved;
   approved.change_id = change_id_;
   approved.gains = live_.gains;
@@ -149,6 +157,29 @@ void SupervisorCore::update_model() {
                     live_.sample_rate_hz),
         {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
   publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
+  if (axes_) {
+    // n > 1 nodes cannot retune yet: a model that misses its requirement cannot be met by
+    // lowering the planes, so the next step of the ladder is taken at once.
+    if (axes_->assessment.acceptable()) return;
+    const auto coupled = [](const NodeView& v) {
+      return v.mode == v1::ALIGNING || v.mode == v1::ENGAGED || v.mode == v1::CLUTCHED;
+    };
+    const auto rm =
+        coupled(master_) ? command(Side::kMaster, v1::NodeCommand::DISENGAGE) : std::nullopt;
+    const auto rs =
+        coupled(slave_) ? command(Side::kSlave, v1::NodeCommand::DISENGAGE) : std::nullopt;
+    alarm(v1::Alarm::CRITICAL, "round_trip", "system",
+          fmt::format("the {}-axis model with a {}-sample round trip at {:.1f} Hz no longer meets "
+                      "the requirement; n > 1 nodes cannot retune yet, so the planes cannot be "
+                      "lowered",
+                      axes_->params.axes, live_.round_trip_samples, live_.sample_rate_hz),
+          {{"round_trip_p99", static_cast<double>(measured_round_trip_ns_) * 1e-6, "ms"},
+           {"min_damping_ratio", axes_->assessment.min_damping_ratio, ""}},
+          fmt::format("disengaged both nodes (master {}, slave {})",
+                      rm ? v1::NodeMode_Name(rm->mode()) : v1::NodeMode_Name(master_.mode),
+                      rs ? v1::NodeMode_Name(rs->mode()) : v1::NodeMode_Name(slave_.mode)));
+    return;
+  }
   // Stability is not monotonic in the round trip (nor in the rate): a shorter one can make the
   // model miss its requirement as well as a longer one. Whatever changed, a model that misses
   // it lowers the fixtures.
@@ -220,12 +251,14 @@ void SupervisorCore::check_findings() {
     for (NodeView* n : {&master_, &slave_}) {
       n->oscillation->clear();
       n->passivity->reset();
+      if (n->oscillation_axes) n->oscillation_axes->clear();
+      if (n->passivity_axes) n->passivity_axes->reset();
       n->finding_since_ns = 0;
     }
   }
   bool any = false;
   for (NodeView* n : {&master_, &slave_}) {
-    const Finding f = finding(*n);
+    const Finding f = axes_ ? axes_finding(*n) : finding(*n);
     if (f.what.empty()) {
       n->finding_since_ns = 0;
       continue;
@@ -242,10 +275,23 @@ void SupervisorCore::check_findings() {
         alarm(v1::Alarm::WARNING, f.kind, n->name, f.what, f.evidence);
         break;
       case EscalationAction::kLowerFixtures:
+        if (axes_) {
+          // The one-axis ladder lowers the fixtures here by a RETUNE, which n > 1 nodes cannot
+          // apply yet: the next step instead.
+          disengage_both(*n, f,
+                         fmt::format("lasted {:g} ms; n > 1 nodes cannot retune yet, so the "
+                                     "planes cannot be lowered",
+                                     static_cast<double>(escalation_ns_) * 1e-6));
+          break;
+        }
         alarm(v1::Alarm::ACTION, f.kind, n->name, f.what, f.evidence,
               lower_fixtures(f.what + " on the " + n->name).action);
         break;
       case EscalationAction::kDisengage:
+        if (axes_) {
+          disengage_both(*n, f, "persisted after both nodes were disengaged");
+          break;
+        }
         disengage_both(*n, f);
         break;
       case EscalationAction::kNone:
@@ -255,7 +301,7 @@ void SupervisorCore::check_findings() {
   ladder_.end_check(now_ns_, any);
 }
 
-void SupervisorCore::disengage_both(const NodeView& n, const Finding& f) {
+void SupervisorCore::disengage_both(const NodeView& n, const Finding& f, const std::string& why) {
   const auto coupled = [](const NodeView& v) {
     return v.mode == v1::ALIGNING || v.mode == v1::ENGAGED || v.mode == v1::CLUTCHED;
   };
@@ -264,8 +310,7 @@ void SupervisorCore::disengage_both(const NodeView& n, const Finding& f) {
       coupled(master_) ? command(Side::kMaster, v1::NodeCommand::DISENGAGE) : std::nullopt;
   const auto rs =
       coupled(slave_) ? command(Side::kSlave, v1::NodeCommand::DISENGAGE) : std::nullopt;
-  alarm(v1::Alarm::CRITICAL, f.kind, n.name, f.what + " persisted after lowering the fixtures",
-        f.evidence,
+  alarm(v1::Alarm::CRITICAL, f.kind, n.name, f.what + " " + why, f.evidence,
         fmt::format("disengaged both nodes (master {}, slave {})",
                     rm ? v1::NodeMode_Name(rm->mode()) : v1::NodeMode_Name(master_.mode),
                     rs ? v1::NodeMode_Name(rs->mode()) : v1::NodeMode_Name(slave_.mode)));

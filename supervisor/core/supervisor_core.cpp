@@ -7,6 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/config/parameter_space.hpp"
 #include "common/core/defaults.hpp"
 #include "supervisor/core/configuration_check.hpp"
 #include "supervisor/core/report.hpp"
@@ -25,10 +26,20 @@ bool coupling(v1::NodeMode m) { return m == v1::ALIGNING || m == v1::ENGAGED || 
 
 SupervisorCore::SupervisorCore(const config::LoadedConfig& config, SupervisorOptions options,
                                SupervisorPorts& ports)
-    : SupervisorCore(config::compile_system(config), std::move(options), ports) {}
+    : SupervisorCore(compile_supervised(config), axes_state(config), std::move(options), ports) {}
 
 SupervisorCore::SupervisorCore(config::CompiledSystem system, SupervisorOptions options,
                                SupervisorPorts& ports)
+    : SupervisorCore(std::move(system), std::nullopt, std::move(options), ports) {}
+
+std::optional<SupervisorCore::AxesState> SupervisorCore::axes_state(
+    const config::LoadedConfig& config) {
+  if (!several_axes(config)) return std::nullopt;
+  return AxesState{config, supervised_axes_params(config), {}};
+}
+
+SupervisorCore::SupervisorCore(config::CompiledSystem system, std::optional<AxesState> axes,
+                               SupervisorOptions options, SupervisorPorts& ports)
     : ports_(ports),
       system_(std::move(system)),
       params_(system_.teleop()),
@@ -59,9 +70,18 @@ SupervisorCore::SupervisorCore(config::CompiledSystem system, SupervisorOptions 
     n->passivity = std::make_unique<PassivityObserver>(period_s_);
   }
   master_.summary = std::make_unique<NodeSummaryBuilder>(true, params_.master_fixture.position_m,
-                                                         params_.master_fixture.stiffness_N_per_m);
+                                                         params_.master_fixture.stiffness_N_per_m,
+                                                         5.0, 0.05, params_.scaling.position);
   slave_.summary = std::make_unique<NodeSummaryBuilder>(false, params_.slave_fixture.position_m,
-                                                        params_.slave_fixture.stiffness_N_per_m);
+                                                        params_.slave_fixture.stiffness_N_per_m,
+                                                        5.0, 0.05, params_.scaling.position);
+  axes_ = std::move(axes);
+  if (!axes_) return;
+  for (NodeView* n : {&master_, &slave_}) {
+    n->oscillation_axes = std::make_unique<OscillationMonitorAxes>(axes_->params.axes, period_s_,
+                                                                   0.5, oscillation_threshold_m_);
+    n->passivity_axes = std::make_unique<PassivityObserverAxes>(axes_->params.axes, period_s_);
+  }
 }
 
 // --- messages out ----------------------------------------------------------------------------
@@ -72,8 +92,8 @@ void SupervisorCore::record(std::string_view topic, const google::protobuf::Mess
 
 void SupervisorCore::record_start() {
   if (!opts_.sink) return;
-  record_session_start(*opts_.sink, system_.source(), opts_.config_text, report_,
-                       "teleop-supervisor", log_time_ns());
+  record_session_start(*opts_.sink, source(), opts_.config_text, report_, "teleop-supervisor",
+                       log_time_ns());
   master_.rt_recorded = false;
   slave_.rt_recorded = false;
 }
@@ -98,6 +118,10 @@ v1::StabilityReport SupervisorCore::make_report(const Assessment& a,
 
 void SupervisorCore::publish_report(const std::string& reason) {
   if (opts_.replay) return;  // the recorded reports are shown (replay_report())
+  if (axes_) {
+    publish_axes_report(reason);
+    return;
+  }
   const Assessment& a = guard_.assess(live_);
   report_ = make_report(a, reason);
   ports_.report(report_);
@@ -108,6 +132,8 @@ void SupervisorCore::publish_report(const std::string& reason) {
 }
 
 v1::SystemConfig SupervisorCore::config_in_force() const {
+  // Several axes: no change is ever applied (refuse_axes_change), the file is in force.
+  if (axes_) return axes_->source.config;
   v1::SystemConfig c = system_.source().config;
   *c.mutable_gains() = to_proto(live_.gains);
   // A side without a fixture keeps none while its stiffness in force is 0.
@@ -184,7 +210,7 @@ void SupervisorCore::alarm(v1::Alarm::Severity severity, const std::string& kind
 
 void SupervisorCore::start(std::int64_t now_ns) {
   now_ns_ = now_ns;
-  record(record::topic::kConfig, system_.source().config);
+  record(record::topic::kConfig, source().config);
   publish_config();
   publish_report("start");
   record_start();
@@ -310,6 +336,24 @@ std::string SupervisorCore::roll_back(std::uint64_t refused_id, const std::strin
 
 void SupervisorCore::on_change_request(const v1::ParameterChangeRequest& c,
                                        v1::SupervisorReply& reply) {
+  if (axes_) {
+    refuse_axes_change(c, reply);
+    return;
+  }
+  // A per-axis list or a matrix would not survive from_proto (the scalars only): refused by
+  // name rather than dropped.
+  if (const std::string why = config::check_one_axis_gains(c.gains()); !why.empty()) {
+    v1::ParameterChangeReply& refused = *reply.mutable_change();
+    refused.set_accepted(false);
+    refused.set_reason("refused: " + why);
+    v1::ParameterChangeRecord rec;
+    *rec.mutable_request() = c;
+    *rec.mutable_reply() = refused;
+    rec.set_time_ns(now_ns_);
+    change_decided(rec);
+    spdlog::info("change request ({}): {}", c.requested_by(), refused.reason());
+    return;
+  }
   ChangeRequest change;
   if (c.has_gains()) change.gains = from_proto(c.gains());
   if (c.has_master_fixture_stiffness_n_per_m()) {
@@ -340,6 +384,8 @@ void SupervisorCore::on_telemetry(Side side, const v1::Telemetry& t, std::int64_
     n.oscillation->clear();
     n.passivity->reset();
     n.summary->reset();
+    if (n.oscillation_axes) n.oscillation_axes->clear();
+    if (n.passivity_axes) n.passivity_axes->reset();
     n.newest_change_seen = 0;
     n.unapproved.clear();
   }
@@ -349,19 +395,22 @@ void SupervisorCore::on_telemetry(Side side, const v1::Telemetry& t, std::int64_
           fmt::format("went {} ({})", v1::NodeMode_Name(t.mode()), t.mode_reason()), {});
   }
   n.mode = t.mode();
+  // Several axes: no guarded change exists to adopt or audit (the nodes refuse every RETUNE
+  // for n > 1), and ActiveParameters carries the one-axis scalars only.
   if (is_master && !heard_master_) {
     heard_master_ = true;
-    adopt_parameters_in_force(t);
+    if (!axes_) adopt_parameters_in_force(t);
   }
   n.last = t;
   n.last_received_ns = now_ns;
   // After the master's first message: a change in force on running nodes is adopted then.
-  if (heard_master_) audit_parameters(n, t);
+  if (heard_master_ && !axes_) audit_parameters(n, t);
   for (const v1::CycleRecord& c : t.cycles()) {
     n.cycle_times.push_back(c.sample_time_ns());
     while (n.cycle_times.size() > 2000) n.cycle_times.pop_front();
-    feed_monitors(c, is_master, *n.oscillation, *n.passivity);
+    if (!axes_) feed_monitors(c, is_master, *n.oscillation, *n.passivity);
   }
+  if (axes_) feed_axes_monitors(n, t);
   n.summary->add(t, now_ns);
   record(record::topic::telemetry(is_master), t);
   if (opts_.sink) {
@@ -563,7 +612,7 @@ void SupervisorCore::set_recording(bool on, v1::SupervisorReply& reply) {
   }
   opts_.sink = opts_.new_sink();
   recorder_failure_announced_ = false;
-  record(record::topic::kConfig, system_.source().config);
+  record(record::topic::kConfig, source().config);
   record(record::topic::kStability, report_);
   record_start();
   alarm(v1::Alarm::INFO, "command", "system", "recording started: " + opts_.sink->file(), {});
@@ -614,19 +663,24 @@ void SupervisorCore::fill_status(v1::SupervisorStatus& s, bool may_command) cons
   s.set_pid(opts_.pid);
   s.set_master_alive(master_.last && now_ns_ - master_.last_received_ns < kHeartbeatNs);
   s.set_slave_alive(slave_.last && now_ns_ - slave_.last_received_ns < kHeartbeatNs);
-  master_.summary->fill(*s.mutable_master(), now_ns_,
-                        read_monitors(*master_.oscillation, *master_.passivity));
-  slave_.summary->fill(*s.mutable_slave(), now_ns_,
-                       read_monitors(*slave_.oscillation, *slave_.passivity));
+  master_.summary->fill(
+      *s.mutable_master(), now_ns_,
+      axes_ ? axes_readings(master_) : read_monitors(*master_.oscillation, *master_.passivity));
+  slave_.summary->fill(
+      *s.mutable_slave(), now_ns_,
+      axes_ ? axes_readings(slave_) : read_monitors(*slave_.oscillation, *slave_.passivity));
   s.set_client_may_command(may_command);
   fill_configuration_status(s);
 }
 
 // docs/nodes.md "Before engage": the fingerprints, each node's own check, the experiment banner.
 void SupervisorCore::fill_configuration_status(v1::SupervisorStatus& s) const {
-  s.set_config_fingerprint(system_.node(transport::Role::kMaster).settings.config_fingerprint);
+  // Several axes: none of its own yet (its one-axis view's would mislead; the nodes' are
+  // compared with each other).
+  s.set_config_fingerprint(
+      axes_ ? 0 : system_.node(transport::Role::kMaster).settings.config_fingerprint);
   s.set_configuration_mismatch(configuration_mismatch_);
-  s.set_experiment_banner(experiment_banner(system_.source().config.experiment().allow_unstable(),
+  s.set_experiment_banner(experiment_banner(source().config.experiment().allow_unstable(),
                                             master_.last ? &*master_.last : nullptr,
                                             slave_.last ? &*slave_.last : nullptr));
   for (const auto& [view, summary] :

@@ -12,6 +12,12 @@
 // (warn -> lower the fixtures within the guard -> disengage both nodes), lowers the fixtures
 // when the measured round trip makes the model miss its requirement (retried until applied),
 // and records the session.
+//
+// Several task-space axes (the file's axes: n > 1; docs/architecture.md "The supervisor with
+// several axes"): the report is the n-axis analysis with every plane's limit, the monitors
+// watch every axis and the vector port f . v, and a change request is refused (the nodes cannot
+// apply a guarded change for n > 1 yet); where the one-axis ladder lowers a fixture, the n-axis
+// one disengages. One axis takes today's path exactly.
 #pragma once
 
 #include <cstdint>
@@ -28,8 +34,10 @@
 #include "common/config/node_loader.hpp"
 #include "common/config/system_compiler.hpp"
 #include "common/record/session.hpp"
+#include "supervisor/core/axes_supervision.hpp"
 #include "supervisor/core/escalation.hpp"
 #include "supervisor/core/monitors.hpp"
+#include "supervisor/core/monitors_axes.hpp"
 #include "supervisor/core/parameter_audit.hpp"
 #include "supervisor/core/stability_guard.hpp"
 #include "supervisor/core/status_builder.hpp"
@@ -101,7 +109,8 @@ class SupervisorCore {
   // The system as config::compile_system (common/config/system_compiler.hpp) makes it: the
   // teleoperator, both nodes' setups and the supervisor's settings, validated once.
   SupervisorCore(config::CompiledSystem system, SupervisorOptions options, SupervisorPorts& ports);
-  // compile_system(config), then as above.
+  // compile_system(config), then as above; a file of several axes (axes: n > 1) is supervised
+  // as n axes (compile_supervised, supervised_axes_params: axes_supervision.hpp).
   SupervisorCore(const config::LoadedConfig& config, SupervisorOptions options,
                  SupervisorPorts& ports);
 
@@ -149,8 +158,29 @@ class SupervisorCore {
   // change applied, a lowering, or the values adopted from running nodes).
   [[nodiscard]] v1::SystemConfig config_in_force() const;
   [[nodiscard]] bool lowering_pending() const { return lowering_pending_; }
+  // The task-space axes supervised: the file's axes (1 for a one-axis file).
+  [[nodiscard]] int axes() const { return axes_ ? axes_->params.axes : 1; }
 
  private:
+  // Several axes: the file as read, its n-axis model (supervised_axes_params) and the newest
+  // assessment published. None for one axis.
+  struct AxesState {
+    config::LoadedConfig source;
+    TeleopAxesParams params;
+    AxesAssessment assessment{};
+    // Every assessment made, by (sample rate, round trip samples): nothing else of the model
+    // changes live with n > 1 (no change is applied), so a round trip that comes back is not
+    // analysed again (with a human band an analysis takes seconds, in the loop).
+    std::map<std::pair<double, int>, AxesAssessment> assessed{};
+  };
+  [[nodiscard]] static std::optional<AxesState> axes_state(const config::LoadedConfig& config);
+  SupervisorCore(config::CompiledSystem system, std::optional<AxesState> axes,
+                 SupervisorOptions options, SupervisorPorts& ports);
+  // The configuration as loaded: the file as read (n > 1: not its one-axis view).
+  [[nodiscard]] const config::LoadedConfig& source() const {
+    return axes_ ? axes_->source : system_.source();
+  }
+
   // One node as the supervisor sees it through its telemetry.
   struct NodeView {
     std::string name;
@@ -167,6 +197,11 @@ class SupervisorCore {
     std::unique_ptr<OscillationMonitor> oscillation{};
     std::unique_ptr<PassivityObserver> passivity{};
     std::unique_ptr<NodeSummaryBuilder> summary{};
+    // Several axes: one oscillation monitor per axis, the passivity observer on f . v, and
+    // the cycles refused (malformed, or another number of axes).
+    std::unique_ptr<OscillationMonitorAxes> oscillation_axes{};
+    std::unique_ptr<PassivityObserverAxes> passivity_axes{};
+    std::uint64_t refused_cycles{0};
     std::int64_t finding_since_ns{0};
     // Parameters in force that the supervisor did not approve (change number and fields), and
     // when it last e-stopped the nodes for them.
@@ -218,6 +253,13 @@ class SupervisorCore {
   std::string roll_back(std::uint64_t refused_id, const std::string& refusal);
   void on_change_request(const v1::ParameterChangeRequest& c, v1::SupervisorReply& reply);
   void audit_parameters(NodeView& n, const v1::Telemetry& t);
+  // supervisor_axes.cpp: several axes.
+  void publish_axes_report(const std::string& reason);
+  void feed_axes_monitors(NodeView& n, const v1::Telemetry& t);
+  [[nodiscard]] Finding axes_finding(NodeView& n) const;
+  [[nodiscard]] MonitorReadings axes_readings(const NodeView& n) const;
+  void refuse_axes_change(const v1::ParameterChangeRequest& c, v1::SupervisorReply& reply);
+  [[nodiscard]] std::string axes_configuration_mismatch() const;
   void adopt_parameters_in_force(const v1::Telemetry& t);
   void handle_request(const v1::SupervisorRequest& req, v1::SupervisorReply& reply);
   [[nodiscard]] std::string read_only_refusal(const v1::SupervisorRequest& req,
@@ -236,7 +278,9 @@ class SupervisorCore {
   void retry_lowering();
   void check_findings();
   [[nodiscard]] Finding finding(NodeView& n) const;
-  void disengage_both(const NodeView& n, const Finding& f);
+  // `why`: what the alarm says happened before (the one-axis ladder: the lowering).
+  void disengage_both(const NodeView& n, const Finding& f,
+                      const std::string& why = "persisted after lowering the fixtures");
   Lowering lower_fixtures(const std::string& why);
   void announce_lowering(const Lowering& l, const char* suffix);
   void check_recorder();
@@ -279,6 +323,7 @@ class SupervisorCore {
   bool recorder_failure_announced_{false};
   bool recording_file_lost_announced_{false};
   std::optional<v1::SupervisorStatus> replayed_recording_{};  // replay_recording()
+  std::optional<AxesState> axes_{};                           // several axes only
   bool report_replayed_{false};  // a replay shows a report only once one was recorded
 };
 

@@ -49,6 +49,14 @@ struct SupervisorApp::Impl final : SupervisorPorts {
                     : std::optional<transport::CurveKeyPair>(transport::load_secret_key_file(
                           loaded.config.supervisor().secret_key_file()))),
         core(std::move(system), with_pid(std::move(options)), *this) {}
+  // A file as loaded: one axis as above, several as n axes (SupervisorCore's own choice).
+  Impl(const config::LoadedConfig& config, SupervisorOptions options)
+      : loaded(config),
+        own_key(loaded.config.supervisor().secret_key_file().empty()
+                    ? std::nullopt
+                    : std::optional<transport::CurveKeyPair>(transport::load_secret_key_file(
+                          loaded.config.supervisor().secret_key_file()))),
+        core(config, with_pid(std::move(options)), *this) {}
 
   // The process id, and the offset that puts the session's log times on the wall clock (UTC):
   // the core's clock is CLOCK_MONOTONIC (monotonic_ns()).
@@ -238,7 +246,7 @@ SupervisorApp::SupervisorApp(config::CompiledSystem system, SupervisorOptions op
     : impl_(std::make_unique<Impl>(std::move(system), std::move(options))) {}
 
 SupervisorApp::SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options)
-    : SupervisorApp(config::compile_system(config), std::move(options)) {}
+    : impl_(std::make_unique<Impl>(config, std::move(options))) {}
 
 SupervisorApp::~SupervisorApp() = default;
 

@@ -20,7 +20,8 @@ class SupervisorApp {
  public:
   // The system validated once (common/config/system_compiler.hpp).
   SupervisorApp(config::CompiledSystem system, SupervisorOptions options);
-  // compile_system(config), then as above.
+  // compile_system(config), then as above; a file of several axes (axes: n > 1) is supervised
+  // as n axes (supervisor/core/axes_supervision.hpp).
   SupervisorApp(const config::LoadedConfig& config, SupervisorOptions options);
   ~SupervisorApp();
   SupervisorApp(const SupervisorApp&) = delete;

@@ -154,8 +154,11 @@ int run_supervisor_main(int argc, char** argv) {
   std::unique_ptr<SupervisorApp> app;
   std::optional<runtime::ServiceNotifier> notifier;
   try {
-    // The file, validated once, as the whole typed system (system_compiler.hpp).
-    config::CompiledSystem system = config::compile_system_file(config_path, overrides);
+    // The file, validated once, as the whole typed system (system_compiler.hpp); a file of
+    // several axes through its one-axis view for the settings and endpoints, and supervised as
+    // n axes (supervisor/core/axes_supervision.hpp).
+    const config::LoadedConfig loaded = config::parse_config_file(config_path, overrides);
+    config::CompiledSystem system = compile_supervised(loaded);
     const v1::Supervisor& s = system.source().config.supervisor();
     const bool recording = record && (!s.has_record() || s.record());
     const std::filesystem::path dir =
@@ -179,7 +182,9 @@ int run_supervisor_main(int argc, char** argv) {
     if (options.sink) spdlog::info("recording to {}", options.sink->file());
     // systemd (Type=notify): logs whether the watchdog is on, once the logger is set up.
     notifier.emplace("main loop");
-    app = std::make_unique<SupervisorApp>(std::move(system), std::move(options));
+    app = several_axes(loaded)
+              ? std::make_unique<SupervisorApp>(loaded, std::move(options))
+              : std::make_unique<SupervisorApp>(std::move(system), std::move(options));
   } catch (const config::ConfigError& e) {
     std::cerr << "teleop-supervisor: invalid configuration:\n" << e.what() << "\n";
     if (notifier) notifier->status(std::string("invalid configuration: ") + e.what());

@@ -7,10 +7,12 @@
 #include <nlohmann/json.hpp>
 #include <ostream>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/config_loader.hpp"
 #include "common/stability/analyzer.hpp"
 #include "common/stability/force_loop.hpp"
 #include "supervisor/teleopctl/analyze_plots.hpp"
+#include "supervisor/teleopctl/axes_commands.hpp"
 #include "supervisor/teleopctl/json_output.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
@@ -206,7 +208,13 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
     }
   }
   if (o.plot_path) write_svg(*o.plot_path, z_plane_chart(p, r));
-  switch (r.verdict) {
+  return verdict_exit_code(r.verdict);
+}
+
+}  // namespace
+
+int verdict_exit_code(stability::Verdict v) {
+  switch (v) {
     case stability::Verdict::kStable:
       return kExitStable;
     case stability::Verdict::kUnstable:
@@ -218,8 +226,6 @@ int run_single(const config::LoadedConfig& cfg, const AnalyzeOptions& o, std::os
   }
   return kExitError;
 }
-
-}  // namespace
 
 Sweep parse_sweep(const std::string& spec) {
   const std::size_t eq = spec.find('=');
@@ -315,6 +321,8 @@ int run_analyze(const AnalyzeOptions& o, std::ostream& out, std::ostream& err) {
     // to_force_loop_params) validates it, once.
     const config::LoadedConfig cfg = config::parse_config_file(o.config_path, o.overrides);
     if (o.force_loop) return run_force_loop(cfg, o, out);
+    // Several task-space axes: the n-axis analysis (axes_commands.cpp).
+    if (config::configured_axes(cfg.config) > 1) return run_analyze_axes(cfg, o, out, err);
     if (cfg.config.has_force_loop() && !cfg.config.has_gains()) {
       // A force-loop file analysed as a teleoperator: say which analysis it is for.
       err << "teleopctl analyze: " << cfg.source_name

@@ -41,6 +41,10 @@ inline constexpr int kExitStable = kExitOk;  // also: a limits table or force-lo
 inline constexpr int kExitUnstable = 3;
 inline constexpr int kExitUncertain = 4;
 
+// The exit code of an analysis verdict (one axis or n): stable 0, unstable 3, uncertain 4,
+// invalid 1.
+[[nodiscard]] int verdict_exit_code(stability::Verdict v);
+
 // The documents `teleopctl analyze --json` prints (fields in docs/analyze.md), from a parsed
 // configuration (config::parse_config_file / parse_config_text with the overrides applied): the
 // CLI and the Python module (python/) both print or return these. Each validates through the

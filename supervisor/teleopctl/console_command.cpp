@@ -236,6 +236,10 @@ class Console {
       return;
     }
     if (ch == KEY_RESIZE) return;
+    if (ch == 't') {  // the per-axis table of nodes with several axes (issue 18)
+      view_.axes_table = !view_.axes_table;
+      return;
+    }
     if (a_.replay) {
       on_replay_key(ch);
       return;

@@ -75,6 +75,28 @@ std::string rt_text(const v1::RtStatus& rt) {
 
 bool stopped(const v1::NodeSummary& n) { return n.mode() == v1::SAFE || n.mode() == v1::FAULT; }
 
+// A node of n > 1 task-space axes whose summary holds every per-axis list whole.
+bool several_axes(const v1::NodeSummary& n) {
+  const int a = static_cast<int>(n.axes());
+  return a > 1 && n.positions_m_size() == a && n.forces_n_size() == a && n.commands_n_size() == a &&
+         n.tracking_errors_m_size() == a;
+}
+
+double norm(const google::protobuf::RepeatedField<double>& v) {
+  double s = 0.0;
+  for (const double x : v) s += x * x;
+  return std::sqrt(s);
+}
+
+// The axis of the largest magnitude (the first of equals).
+int largest(const google::protobuf::RepeatedField<double>& v) {
+  int k = 0;
+  for (int i = 1; i < v.size(); ++i) {
+    if (std::abs(v.Get(i)) > std::abs(v.Get(k))) k = i;
+  }
+  return k;
+}
+
 std::string node_row(const char* name, const v1::NodeSummary& n) {
   if (n.mode() == v1::NODE_MODE_UNSPECIFIED && !n.alive() && n.loop().cycles() == 0) {
     return fmt::format("{:<6} -  (no telemetry yet)", name);
@@ -89,10 +111,45 @@ std::string node_row(const char* name, const v1::NodeSummary& n) {
     // What the operator is being guided to close: alpha x_m - x_s.
     row += fmt::format(" x{:+6.2f}mm gap{:+6.2f}mm", n.position_m() * 1e3,
                        n.alignment_error_m() * 1e3);
+  } else if (several_axes(n)) {
+    row +=
+        fmt::format(" |x|{:5.2f}mm |F|{:4.2f}N", norm(n.positions_m()) * 1e3, norm(n.forces_n()));
   } else {
     row += fmt::format(" x{:+6.2f}mm F{:+5.2f}N", n.position_m() * 1e3, n.force_n());
   }
   return row;
+}
+
+// Under the node row of a node of several axes: the command's norm and the worst axes.
+std::string axes_row(const v1::NodeSummary& n) {
+  const int f = largest(n.forces_n());
+  const int e = largest(n.tracking_errors_m());
+  return fmt::format("       {} axes |u|{:5.2f}N  worst: F axis {} {:+.2f}N, e axis {} {:+.2f}mm",
+                     n.axes(), norm(n.commands_n()), f, n.forces_n(f), e,
+                     n.tracking_errors_m(e) * 1e3);
+}
+
+// One row per axis of both nodes (the axes of the node with more; "-" where a node has none).
+void add_axes_table(std::vector<std::string>& lines, const v1::SupervisorStatus& s) {
+  const v1::NodeSummary& m = s.master();
+  const v1::NodeSummary& l = s.slave();
+  const bool has_m = several_axes(m);
+  const bool has_s = several_axes(l);
+  if (!has_m && !has_s) return;
+  lines.push_back(fmt::format("{:<6}{:>13} {:>6} {:>6}{:>13} {:>6} {:>6} {:>10}", "axis",
+                              "master x mm", "F N", "u N", "slave x mm", "F N", "u N", "e mm"));
+  const int axes = static_cast<int>(std::max(has_m ? m.axes() : 0U, has_s ? l.axes() : 0U));
+  auto side = [](const v1::NodeSummary& n, bool has, int k) {
+    if (!has || k >= static_cast<int>(n.axes())) return fmt::format("{:>27}", "-");
+    // + 0.0: a negative zero prints as 0.00.
+    return fmt::format("{:>13.2f} {:>6.2f} {:>6.2f}", n.positions_m(k) * 1e3 + 0.0,
+                       n.forces_n(k) + 0.0, n.commands_n(k) + 0.0);
+  };
+  for (int k = 0; k < axes; ++k) {
+    const v1::NodeSummary& e = has_m && k < static_cast<int>(m.axes()) ? m : l;
+    lines.push_back(fmt::format("axis {}{}{} {:>+10.3f}", k, side(m, has_m, k), side(l, has_s, k),
+                                e.tracking_errors_m(k) * 1e3));
+  }
 }
 
 std::string link_row(const v1::SupervisorStatus& s) {
@@ -149,6 +206,9 @@ void add_node_rows(std::vector<std::string>& lines, const char* name, const v1::
       static_cast<int>(row.size() + 1 + reason.size()) <= cols) {
     if ((stopped(n) || !n.alive()) && !reason.empty()) row += " " + reason;
     lines.push_back(row);
+    if (several_axes(n) && n.alive() && !stopped(n) && n.mode() != v1::ALIGNING) {
+      lines.push_back(axes_row(n));
+    }
     return;
   }
   if (stopped(n)) {
@@ -283,6 +343,7 @@ std::vector<std::string> help_lines(bool replay) {
         "  [ ]     speed halved / doubled      0    back to the start",
         "  g       go to a time (s): Enter sends it, Esc cancels",
         "  ?       this help (any key closes)  q    quit (the replay goes on)",
+        "  t       nodes of several axes: the per-axis table on / off",
     };
   }
   return {
@@ -299,6 +360,7 @@ std::vector<std::string> help_lines(bool replay) {
       "      first; y applies it, any other key cancels. Unstable is refused.",
       "  r   start / stop recording the session",
       "  ?   this help (any key closes)   q  quit the console (the system goes on)",
+      "  t   nodes of several axes: the per-axis table (one row per axis) on / off",
       "",
       "A read-only console (read-only key or --read-only) can watch and e-stop only.",
   };
@@ -430,6 +492,31 @@ void add_plots(std::vector<std::string>& lines, const v1::SupervisorStatus& s, i
   for (const std::string& l : plot) lines.push_back(l);
 }
 
+// n > 1 axes, in the two rows one axis gives its two fixtures: the limiting plane against its
+// limit (as a fixture row), then every plane's share of its limit ("s1 22%": slave plane 1).
+void add_planes(std::vector<std::string>& lines, const v1::StabilityReport& r, int cols) {
+  const v1::PlaneMargin* limiting = nullptr;
+  std::string shares = "planes";
+  for (const v1::PlaneMargin& p : r.planes()) {
+    if (p.limiting() || limiting == nullptr) limiting = &p;
+    shares += fmt::format(" {}{} ", p.side() == "master" ? "m" : "s", p.index());
+    shares += p.has_fraction_of_limit() ? fmt::format("{:.0f}%", 100.0 * p.fraction_of_limit())
+                                        : std::string("no limit");
+  }
+  if (limiting == nullptr) {
+    lines.emplace_back("planes none");
+    lines.emplace_back("");
+    return;
+  }
+  const std::string name = fmt::format("{} plane {}", limiting->side(), limiting->index());
+  lines.push_back(fixture_row(name.c_str(), limiting->stiffness_n_per_m(),
+                              limiting->has_max_stable_stiffness_n_per_m(),
+                              limiting->max_stable_stiffness_n_per_m(), limiting->margin(), cols,
+                              std::nullopt, std::nullopt));
+  if (static_cast<int>(shares.size()) > cols) shares.resize(static_cast<std::size_t>(cols));
+  lines.push_back(shares);
+}
+
 // The verdict and each fixture's stiffness against its limit.
 void add_stability(std::vector<std::string>& lines, const v1::StabilityReport& r, int cols) {
   if (r.verdict().empty()) {
@@ -442,6 +529,10 @@ void add_stability(std::vector<std::string>& lines, const v1::StabilityReport& r
         fmt::format("stability {}  zeta min {:.4f} (required {:.4f})  model: rtt {} smp, {:.1f} Hz",
                     verdict, r.min_damping_ratio(), r.required_damping_ratio(),
                     r.round_trip_samples(), r.sample_rate_hz()));
+  }
+  if (r.axes() > 1) {
+    add_planes(lines, r, cols);
+    return;
   }
   auto opt = [](bool has, double v) { return has ? std::optional<double>(v) : std::nullopt; };
   lines.push_back(fixture_row(
@@ -481,11 +572,12 @@ std::string recorder_row(const v1::SupervisorStatus& s) {
 
 // Everything between the banners and the alarms when the help is not shown.
 void add_system_rows(std::vector<std::string>& lines, const v1::SupervisorStatus& s,
-                     std::size_t alarms, std::size_t entries, int rows, int cols) {
+                     std::size_t alarms, std::size_t entries, int rows, int cols, bool axes_table) {
   lines.push_back(fmt::format("{:<6} {:<9} {:>6} {:>7} {:>10} {:<14} {}", "node", "state",
                               "rate Hz", "wake p99", "overruns/1m", "RT", "now"));
   add_node_rows(lines, "master", s.master(), cols);
   add_node_rows(lines, "slave", s.slave(), cols);
+  if (axes_table) add_axes_table(lines, s);
   lines.push_back(link_row(s));
   add_plots(lines, s, rows, cols);
   add_stability(lines, s.report(), cols);
@@ -606,7 +698,7 @@ std::vector<std::string> render_console(const ConsoleView& view, int rows, int c
     const std::size_t alarms = view.alarm_history.empty()
                                    ? static_cast<std::size_t>(s.recent_alarms_size())
                                    : view.alarm_history.size();
-    add_system_rows(lines, s, alarms, entries.size(), rows, cols);
+    add_system_rows(lines, s, alarms, entries.size(), rows, cols, view.axes_table);
   }
   add_alarms_and_messages(lines, view, s, entries, rows, cols);
   lines.push_back(key_line(view));

@@ -31,6 +31,8 @@ struct ConsoleView {
   // Every alarm the console has seen, newest first (AlarmHistory); empty: the summary's own
   // (its newest 20).
   std::vector<v1::Alarm> alarm_history{};
+  // Nodes of several task-space axes (issue 18): the per-axis table (key t) under the node rows.
+  bool axes_table{false};
 };
 
 // The alarms of every summary received, newest first, each once: the summary carries only the
@@ -62,6 +64,10 @@ class AlarmHistory {
 //   page at a time, turning every 3 s of `clock_s`, " [p/N]" ending the page's first row);
 //   every row the terminal has beyond these goes to the alarms;
 // - at least 3 message rows, then the key line.
+// - nodes of n > 1 task-space axes: the node row shows the norms |x| and |F| of the newest
+//   cycle, and a row under it |u| (the command's norm) and the worst axes, "axis k" with the
+//   largest |force| and "axis j" with the largest |tracking error| (alpha x_m - x_s); with
+//   axes_table, a table under the node rows, one row per axis: each side's x, F and u and e.
 // The screen, `rows` lines of at most `cols` characters.
 [[nodiscard]] std::vector<std::string> render_console(const ConsoleView& view, int rows, int cols);
 

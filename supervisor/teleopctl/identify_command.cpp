@@ -15,8 +15,12 @@
 #include <stdexcept>
 #include <utility>
 
+#include "common/core/teleop_axes.hpp"
 #include "common/session/session_reader.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
+#include "supervisor/teleopctl/csv_table.hpp"
+#include "supervisor/teleopctl/identify_axes_command.hpp"
+#include "supervisor/teleopctl/identify_rules.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/node_state.pb.h"
@@ -27,15 +31,9 @@ namespace {
 
 using nlohmann::json;
 
-// A fit below this explains too little of the force to trust (the paper's were 0.91 and 0.92):
-// the parameters are not printed.
-constexpr double kPoorFit = 0.9;
-// A motion over fewer steps of the position's resolution (encoder counts) than this is refused:
-// the quantisation, +-1/2 step, is then more than 5 % of the range, and after smoothing the
-// staircase still dominates x'' (noise in a regressor biases its coefficient towards 0).
-constexpr double kMinRangeSteps = 10.0;
-// The data do not determine the parameters (too little excitation): nothing printed to paste.
-constexpr int kExitNotIdentified = 4;
+using identify_rules::kExitNotIdentified;
+using identify_rules::kMinRangeSteps;
+using identify_rules::kPoorFit;
 // The measured-against-fitted plot shows this much of the first run.
 constexpr double kPlotWindow_s = 4.0;
 // A row of `teleopctl simulate --out` is written after the physics step: its time, true
@@ -43,99 +41,6 @@ constexpr double kPlotWindow_s = 4.0;
 // held over the step, and its *_sensed_m are the samples the laws read at the step's start, one
 // row earlier.
 constexpr std::size_t kSimulateSensedLag = 1;
-
-struct Csv {
-  std::vector<std::string> names{};
-  std::vector<std::vector<double>> columns{};
-};
-
-[[nodiscard]] std::string trim_cr(std::string line) {
-  if (!line.empty() && line.back() == '\r') line.pop_back();
-  return line;
-}
-
-// How far a file is read: bytes done of its size (empty: not called).
-using BytesRead = std::function<void(std::uint64_t done, std::uint64_t total)>;
-
-[[nodiscard]] Csv read_csv(const std::string& path, const BytesRead& read = {}) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(fmt::format("cannot read '{}'", path));
-  std::error_code ec_size;
-  const std::uint64_t size = std::filesystem::file_size(path, ec_size);
-  std::uint64_t done = 0;
-  Csv csv;
-  std::string line;
-  if (!std::getline(in, line)) throw std::runtime_error(fmt::format("{}: empty file", path));
-  csv.names = split(trim_cr(line), ',');
-  csv.columns.resize(csv.names.size());
-  std::size_t line_no = 1;
-  while (std::getline(in, line)) {
-    ++line_no;
-    done += line.size() + 1;
-    if (read && !ec_size && line_no % 1000 == 0) read(done, size);
-    line = trim_cr(line);
-    if (line.empty()) continue;
-    const std::vector<std::string> cells = split(line, ',');
-    if (cells.size() != csv.names.size()) {
-      throw std::runtime_error(fmt::format("{}:{}: {} cells, the header has {}", path, line_no,
-                                           cells.size(), csv.names.size()));
-    }
-    for (std::size_t c = 0; c < cells.size(); ++c) {
-      const std::string& cell = cells[c];
-      double v = 0.0;
-      const char* last = cell.data() + cell.size();
-      const auto [ptr, ec] = std::from_chars(cell.data(), last, v);
-      if (ec != std::errc{} || ptr != last || !std::isfinite(v)) {
-        throw std::runtime_error(fmt::format("{}:{}: column '{}': '{}' is not a finite number",
-                                             path, line_no, csv.names[c], cell));
-      }
-      csv.columns[c].push_back(v);
-    }
-  }
-  if (csv.columns.empty() || csv.columns.front().empty()) {
-    throw std::runtime_error(fmt::format("{}: no data rows", path));
-  }
-  if (read) read(1, 1);
-  return csv;
-}
-
-[[nodiscard]] const std::vector<double>& column(const Csv& csv, const std::string& path,
-                                                const std::string& name, const char* what) {
-  for (std::size_t c = 0; c < csv.names.size(); ++c) {
-    if (csv.names[c] == name) return csv.columns[c];
-  }
-  std::string known;
-  for (const std::string& n : csv.names) known += (known.empty() ? "" : ", ") + n;
-  throw std::runtime_error(
-      fmt::format("{}: no column '{}' for the {} (columns: {})", path, name, what, known));
-}
-
-// Sum of signed columns: an exact column name, or terms joined by '+' and '-'.
-[[nodiscard]] std::vector<double> evaluate(const Csv& csv, const std::string& path,
-                                           const std::string& expression, const char* what) {
-  const std::size_t rows = csv.columns.front().size();
-  for (const std::string& n : csv.names) {
-    if (n == expression) return column(csv, path, expression, what);
-  }
-  std::vector<double> sum(rows, 0.0);
-  std::size_t i = 0;
-  while (i < expression.size()) {
-    double sign = 1.0;
-    if (expression[i] == '+' || expression[i] == '-') {
-      sign = expression[i] == '-' ? -1.0 : 1.0;
-      ++i;
-    }
-    const std::size_t end = expression.find_first_of("+-", i);
-    const std::string name = expression.substr(i, end == std::string::npos ? end : end - i);
-    if (name.empty()) {
-      throw std::runtime_error(fmt::format("the {} '{}' has an empty term", what, expression));
-    }
-    const std::vector<double>& c = column(csv, path, name, what);
-    for (std::size_t r = 0; r < rows; ++r) sum[r] += sign * c[r];
-    i = end == std::string::npos ? expression.size() : end;
-  }
-  return sum;
-}
 
 struct IdentifyArgs {
   std::vector<std::string> files{};
@@ -145,6 +50,11 @@ struct IdentifyArgs {
   stability::IdentifyOptions options{};
   bool json{false};
   std::optional<std::string> plot_path{};  // --plot FILE.svg
+  // Several comma-separated --position columns: the n-axis fit (identify_axes_command.hpp).
+  std::optional<IdentifyAxesArgs> axes{};
+  // --mass and --damping for session files of several axes (their models; given: either flag).
+  stability::IdentifyAxesOptions axes_options{};
+  bool axes_models_given{false};
 };
 
 [[nodiscard]] int parse_count(const std::string& text, const char* flag, int min) {
@@ -156,11 +66,77 @@ struct IdentifyArgs {
   return v;
 }
 
+// --mass per-axis|coupled (default coupled) and --damping diagonal|full (default diagonal).
+[[nodiscard]] stability::IdentifyAxesOptions axes_models(
+    const std::optional<std::string>& mass, const std::optional<std::string>& damping) {
+  if (mass && *mass != "per-axis" && *mass != "coupled") {
+    throw UsageError(fmt::format("--mass: '{}' is neither per-axis nor coupled", *mass));
+  }
+  if (damping && *damping != "diagonal" && *damping != "full") {
+    throw UsageError(fmt::format("--damping: '{}' is neither diagonal nor full", *damping));
+  }
+  stability::IdentifyAxesOptions o;
+  o.mass = mass.value_or("coupled") == "coupled" ? stability::MassModel::kCoupled
+                                                 : stability::MassModel::kPerAxis;
+  o.damping = damping.value_or("diagonal") == "full" ? stability::DampingModel::kFull
+                                                     : stability::DampingModel::kDiagonal;
+  return o;
+}
+
+// `--position x0,x1,...`: one column per task axis, as many --force (and --held-force)
+// expressions; the mass model per-axis or coupled (default), the damping diagonal (default) or
+// full.
+[[nodiscard]] IdentifyAxesArgs parse_axes_args(const IdentifyArgs& a, const std::string& position,
+                                               const std::optional<std::string>& force,
+                                               const std::optional<std::string>& held,
+                                               const std::optional<std::string>& mass,
+                                               const std::optional<std::string>& damping) {
+  IdentifyAxesArgs x;
+  x.files = a.files;
+  x.device = a.device;
+  x.time = a.columns.time;
+  x.rate_hz = a.columns.rate_hz;
+  x.json = a.json;
+  x.options.filter = a.options;
+  x.position = split(position, ',');
+  const std::size_t n = x.position.size();
+  if (n > static_cast<std::size_t>(kMaxAxes)) {
+    throw UsageError(fmt::format("--position: {} columns, at most {} axes", n, kMaxAxes));
+  }
+  for (const std::string& p : x.position) {
+    if (p.empty()) throw UsageError(fmt::format("--position '{}': an empty column", position));
+  }
+  if (!force) throw UsageError("--position and --force go together (--held-force is optional)");
+  x.force = split(*force, ',');
+  if (held) x.held_force = split(*held, ',');
+  for (const auto& [flag, list] :
+       {std::pair<const char*, const std::vector<std::string>*>{"--force", &x.force},
+        {"--held-force", &x.held_force}}) {
+    if (!list->empty() && list->size() != n) {
+      throw UsageError(fmt::format("{}: {} expressions for {} --position columns (one per axis)",
+                                   flag, list->size(), n));
+    }
+  }
+  if (a.plot_path) throw UsageError("--plot draws one axis: not with several --position columns");
+  for (const std::string& f : a.files) {
+    if (record::is_mcap_file(f)) {
+      throw UsageError(
+          fmt::format("{}: a session file gives its own axes: no --position columns", f));
+    }
+  }
+  const stability::IdentifyOptions filter = x.options.filter;
+  x.options = axes_models(mass, damping);
+  x.options.filter = filter;
+  return x;
+}
+
 [[nodiscard]] IdentifyArgs parse_identify_args(const std::vector<std::string>& args) {
   IdentifyArgs a;
   std::optional<std::string> position;
   std::optional<std::string> force;
   std::optional<std::string> held;
+  std::optional<std::string> mass;
+  std::optional<std::string> damping;
   ArgCursor c(args);
   while (c.next()) {
     const std::string& arg = c.arg();
@@ -195,6 +171,10 @@ struct IdentifyArgs {
       a.json = true;
     } else if (arg == "--plot") {
       a.plot_path = svg_plot_path(c.value("--plot"));
+    } else if (arg == "--mass") {
+      mass = c.value("--mass");
+    } else if (arg == "--damping") {
+      damping = c.value("--damping");
     } else if (!arg.empty() && arg.front() == '-') {
       throw UsageError(fmt::format("unknown option '{}'", arg));
     } else {
@@ -202,6 +182,22 @@ struct IdentifyArgs {
     }
   }
   if (a.files.empty()) throw UsageError("at least one FILE.csv is required");
+  if (position && position->find(',') != std::string::npos) {
+    a.axes = parse_axes_args(a, *position, force, held, mass, damping);
+    return a;
+  }
+  if (mass || damping) {
+    const bool sessions =
+        !position && std::all_of(a.files.begin(), a.files.end(),
+                                 [](const auto& f) { return record::is_mcap_file(f); });
+    if (!sessions) {
+      throw UsageError(
+          "--mass and --damping are for several axes (comma-separated --position columns, or "
+          "session files of several axes)");
+    }
+    a.axes_options = axes_models(mass, damping);
+    a.axes_models_given = true;
+  }
   a.custom_columns = position || force || held;
   if (a.custom_columns) {
     if (!position || !force) {
@@ -227,23 +223,25 @@ struct IdentifyArgs {
 }
 
 // A session file's cycles of one node as runs: each stretch of consecutive cycles (same
-// session, sequences one apart, sample times one period apart to 1 %, not FAULT). A cycle
-// records the position and load-cell force sampled at its start and the command it wrote, held
-// until the next sample, so sample k pairs cycle k's position and force with cycle k-1's
-// command. The slave's load cell reads its push on the environment: the force on the device is
-// its negative. Stretches too short to fit or without motion (a node waiting to be armed) are
-// left out and counted.
+// session, same number of axes, sequences one apart, sample times one period apart to 1 %, not
+// FAULT). A cycle records the position and load-cell force sampled at its start and the command
+// it wrote, held until the next sample, so sample k pairs cycle k's position and force with
+// cycle k-1's command. The slave's load cell reads its push on the environment: the force on the
+// device is its negative. Stretches too short to fit or without motion (a node waiting to be
+// armed) are left out and counted. One-axis cycles give `runs`; cycles of n > 1 axes (issue 18)
+// give `axes_runs`, each axis as the one axis above.
 struct McapRuns {
+  int axes{1};
   std::vector<stability::Series> runs{};
+  std::vector<stability::SeriesAxes> axes_runs{};
   std::vector<std::string> names{};
   std::size_t short_runs{0};  // too short to fit, or motionless (disarmed): left out
 };
 
-[[nodiscard]] McapRuns read_runs_mcap(const std::string& path, bool master,
-                                      const stability::IdentifyOptions& options,
-                                      const BytesRead& read) {
-  const std::vector<record::RecordedCycle> cycles =
-      record::SessionReader::open(path).cycles(master, read);
+using Cycles = std::vector<record::RecordedCycleAxes>;
+
+// The cycles' period: the median step between consecutive sample times, ns.
+[[nodiscard]] double median_period_ns(const std::string& path, const Cycles& cycles, bool master) {
   if (cycles.size() < 2) {
     throw std::runtime_error(fmt::format("{}: {} cycles of the {} recorded, too few to identify",
                                          path, cycles.size(), master ? "master" : "slave"));
@@ -257,24 +255,71 @@ struct McapRuns {
   if (!(period_ns > 0.0)) {
     throw std::runtime_error(fmt::format("{}: the cycles' sample times do not advance", path));
   }
+  return period_ns;
+}
+
+// Cycles [begin, end) as one run of `axes` axes (the samples begin + 1 .. end - 1), or nullopt
+// when it is too short to fit or does not move.
+[[nodiscard]] std::optional<stability::SeriesAxes> axes_run(const Cycles& cycles, std::size_t begin,
+                                                            std::size_t end, double period_ns,
+                                                            double sign,
+                                                            const stability::IdentifyOptions& o) {
+  const int n = cycles[begin].cycle.axes;
+  const auto rows = static_cast<Eigen::Index>(end - begin - 1);
+  if (rows <= 0 || stability::usable_rows(static_cast<std::size_t>(rows), true, o) == 0) {
+    return std::nullopt;
+  }
+  stability::SeriesAxes s;
+  s.period_s = period_ns * 1e-9;
+  s.position_m.resize(rows, n);
+  s.force_N.resize(rows, n);
+  s.held_force_N.resize(rows, n);
+  for (std::size_t k = begin + 1; k < end; ++k) {
+    const auto r = static_cast<Eigen::Index>(k - begin - 1);
+    for (int i = 0; i < n; ++i) {
+      const auto a = static_cast<std::size_t>(i);
+      s.position_m(r, i) = cycles[k].cycle.position_m[a];
+      s.force_N(r, i) = sign * cycles[k].cycle.force_N[a];
+      s.held_force_N(r, i) = cycles[k - 1].cycle.command_N[a];
+    }
+  }
+  const bool moves =
+      ((s.position_m.colwise().maxCoeff() - s.position_m.colwise().minCoeff()).array() > 0.0).any();
+  if (!moves) return std::nullopt;
+  return s;
+}
+
+[[nodiscard]] McapRuns read_runs_mcap(const std::string& path, bool master,
+                                      const stability::IdentifyOptions& options,
+                                      const BytesRead& read) {
+  const Cycles cycles = record::SessionReader::open(path).cycles_axes(master, read);
+  const double period_ns = median_period_ns(path, cycles, master);
   const double sign = master ? 1.0 : -1.0;
+  const char* side = master ? "master" : "slave";
   McapRuns out;
+  out.axes = 0;
+  for (const record::RecordedCycleAxes& c : cycles) out.axes = std::max(out.axes, c.cycle.axes);
   std::size_t begin = 0;
   auto close_run = [&](std::size_t end) {  // cycles [begin, end)
-    if (end > begin + 1) {
-      stability::Series s;
-      s.period_s = period_ns * 1e-9;
-      for (std::size_t k = begin + 1; k < end; ++k) {
-        s.position_m.push_back(cycles[k].cycle.position_m);
-        s.force_N.push_back(sign * cycles[k].cycle.force_N);
-        s.held_force_N.push_back(cycles[k - 1].cycle.command_N);
-      }
-      const auto [lo, hi] = std::minmax_element(s.position_m.begin(), s.position_m.end());
-      if (stability::usable_rows(s.position_m.size(), true, options) > 0 && *lo != *hi) {
-        out.names.push_back(fmt::format("{} {} cycles {}..{}", path, master ? "master" : "slave",
+    if (end > begin + 1 && cycles[begin].cycle.axes == out.axes) {
+      std::optional<stability::SeriesAxes> s =
+          axes_run(cycles, begin, end, period_ns, sign, options);
+      if (s) {
+        out.names.push_back(fmt::format("{} {} cycles {}..{}", path, side,
                                         cycles[begin].cycle.sequence,
                                         cycles[end - 1].cycle.sequence));
-        out.runs.push_back(std::move(s));
+        if (out.axes == 1) {
+          // One axis: the one-axis fit's series, as before several axes.
+          stability::Series one;
+          one.period_s = s->period_s;
+          one.position_m.assign(s->position_m.data(), s->position_m.data() + s->position_m.size());
+          one.force_N.assign(s->force_N.data(), s->force_N.data() + s->force_N.size());
+          one.held_force_N.assign(s->held_force_N.data(),
+                                  s->held_force_N.data() + s->held_force_N.size());
+          out.runs.push_back(std::move(one));
+        } else {
+          out.axes_runs.push_back(std::move(*s));
+        }
       } else {
         ++out.short_runs;
       }
@@ -284,26 +329,26 @@ struct McapRuns {
     begin = end;
   };
   for (std::size_t i = 0; i < cycles.size(); ++i) {
-    const record::RecordedCycle& c = cycles[i];
+    const record::RecordedCycleAxes& c = cycles[i];
     if (c.cycle.mode == node::Mode::kFault) {
       close_run(i);
       begin = i + 1;
       continue;
     }
     if (i > begin) {
-      const record::RecordedCycle& p = cycles[i - 1];
+      const record::RecordedCycleAxes& p = cycles[i - 1];
       const double dt = static_cast<double>(c.cycle.sample_time_ns - p.cycle.sample_time_ns);
-      if (c.session_id != p.session_id || c.cycle.sequence != p.cycle.sequence + 1 ||
-          std::abs(dt - period_ns) > 0.01 * period_ns) {
+      if (c.session_id != p.session_id || c.cycle.axes != p.cycle.axes ||
+          c.cycle.sequence != p.cycle.sequence + 1 || std::abs(dt - period_ns) > 0.01 * period_ns) {
         close_run(i);
       }
     }
   }
   close_run(cycles.size());
-  if (out.runs.empty()) {
+  if (out.names.empty()) {
     throw std::runtime_error(fmt::format(
         "{}: no stretch of consecutive {} cycles long enough and moving to identify ({} cycles)",
-        path, master ? "master" : "slave", cycles.size()));
+        path, side, cycles.size()));
   }
   return out;
 }
@@ -360,7 +405,10 @@ std::string identify_usage() {
   return "usage: teleopctl identify FILE.csv|FILE.mcap... [--device master|slave] [--passes N]\n"
          "                          [--trim N] [--time COL | --rate HZ]\n"
          "                          [--position COL --force EXPR [--held-force EXPR]]\n"
-         "                          [--raw-force] [--json] [--plot FILE.svg]\n\n"
+         "                          [--raw-force] [--json] [--plot FILE.svg]\n"
+         "       teleopctl identify FILE.csv... --position X0,X1,.. --force F0,F1,..\n"
+         "                          [--held-force H0,H1,..] [--mass coupled|per-axis]\n"
+         "                          [--damping diagonal|full] [--device D] [--json] ...\n\n"
          "Identifies a device's mass and damping, m x'' + b x' = F, by least squares over one\n"
          "or more recorded runs (stacked), from the position smoothed by a multiple-pass\n"
          "three-point moving average and differentiated twice, and prints them as --set\n"
@@ -375,6 +423,13 @@ std::string identify_usage() {
          "load cell's force_N (on the slave the force on the device is -force_N: the cell reads\n"
          "its push on the environment) and the command_N held over the period before each\n"
          "sample; each stretch of consecutive cycles is a run.\n\n"
+         "Several axes (CSV files): comma-separated --position columns, one per task axis, and\n"
+         "as many --force (and --held-force) expressions fit M x'' + B x' = F with the mass\n"
+         "matrix M coupled (symmetric, default) or per-axis (diagonal) and B diagonal (default)\n"
+         "or full, printed as --set overrides of device.mass_matrix_kg and\n"
+         "device.damping_Ns_per_m_per_axis. Drive every axis with its own force. A session\n"
+         "file of a node with several axes gives them itself (each axis's position_m, force_N\n"
+         "and command_N as above; no --position), --mass and --damping as for CSV files.\n\n"
          "options:\n"
          "  --device D       which paddle of a session file or of a 'teleopctl simulate --out'\n"
          "                   CSV (default master). CSV master: position master_sensed_m, force "
@@ -392,6 +447,8 @@ std::string identify_usage() {
          "                   higher sample rates)\n"
          "  --trim N         further samples dropped at each end of each run (default 0)\n"
          "  --raw-force      do not smooth the force like the regressors\n"
+         "  --mass M         several axes: coupled (default) or per-axis\n"
+         "  --damping B      several axes: diagonal (default) or full\n"
          "  --json           machine-readable output\n"
          "  --plot F.svg     the first run's position (mm) and its measured force against the\n"
          "                   fitted m x'' + b x' (N), first 4 s\n"
@@ -407,6 +464,9 @@ struct Runs {
   std::vector<stability::Series> runs{};
   std::vector<std::string> names{};
   std::size_t short_runs{0};
+  // Session files of n > 1 axes (issue 18): their runs, fitted by identify_axes_runs.
+  int axes{1};
+  std::vector<stability::SeriesAxes> axes_runs{};
 };
 
 // Reading the files and the fit in the time they take (measured on a 300 s session, 300 000
@@ -426,12 +486,22 @@ constexpr double kIdentifyFit = 0.06;
             file));
       }
       McapRuns m = read_runs_mcap(file, a.device.value_or("master") == "master", a.options, read);
-      for (std::size_t i = 0; i < m.runs.size(); ++i) {
-        out.runs.push_back(std::move(m.runs[i]));
-        out.names.push_back(m.names[i]);
+      if (&file != &a.files.front() && m.axes != out.axes) {
+        throw std::runtime_error(
+            fmt::format("{}: cycles of {} axes, the files before {}", file, m.axes, out.axes));
       }
+      out.axes = m.axes;
+      for (std::size_t i = 0; i < m.runs.size(); ++i) out.runs.push_back(std::move(m.runs[i]));
+      for (std::size_t i = 0; i < m.axes_runs.size(); ++i) {
+        out.axes_runs.push_back(std::move(m.axes_runs[i]));
+      }
+      for (const std::string& name : m.names) out.names.push_back(name);
       out.short_runs += m.short_runs;
     } else {
+      if (out.axes != 1) {
+        throw std::runtime_error(
+            fmt::format("{}: a CSV file among session files of {} axes", file, out.axes));
+      }
       out.runs.push_back(read_series_csv(file, a.columns, read));
       out.names.push_back(file);
     }
@@ -462,34 +532,13 @@ constexpr double kIdentifyFit = 0.06;
   return r.mass_kg > 0.0 && r.damping_Ns_per_m >= 0.0;
 }
 
-// How far the device moved: the largest run's position range, and the position's resolution
-// as the data show it (the smallest step between two distinct positions: an encoder count;
-// about 0 for a continuous sensor).
-struct Excitation {
-  double range_m{0.0};
-  double step_m{0.0};
-  [[nodiscard]] bool quantised() const { return step_m > 0.0; }
-  [[nodiscard]] double steps() const { return quantised() ? range_m / step_m : 0.0; }
-};
+// How far the device moved over its runs (identify_rules.hpp).
+using Excitation = identify_rules::Motion;
 
 [[nodiscard]] Excitation excitation(const Runs& runs) {
-  Excitation e;
-  double smallest = std::numeric_limits<double>::infinity();
-  for (const stability::Series& s : runs.runs) {
-    std::vector<double> x = s.position_m;
-    std::sort(x.begin(), x.end());
-    if (x.empty()) continue;
-    e.range_m = std::max(e.range_m, x.back() - x.front());
-    // Steps below this are rounding of one position computed two ways, not resolution.
-    const double rounding = 1e-9 * std::max(std::abs(x.front()), std::abs(x.back()));
-    for (std::size_t i = 1; i < x.size(); ++i) {
-      const double d = x[i] - x[i - 1];
-      if (d > rounding) smallest = std::min(smallest, d);
-    }
-  }
-  // A resolution finer than a millionth of the motion is a continuous sensor.
-  if (std::isfinite(smallest) && smallest > 1e-6 * e.range_m) e.step_m = smallest;
-  return e;
+  std::vector<std::vector<double>> positions;
+  for (const stability::Series& s : runs.runs) positions.push_back(s.position_m);
+  return identify_rules::motion_of(positions);
 }
 
 // Why the data do not determine the parameters (empty: they do).
@@ -677,12 +726,36 @@ struct Read {
   Runs runs = read_runs(a, parts);
   // The fit reports nothing as it goes: the line shows where it starts.
   if (const auto fitting = parts.fraction(kIdentifyFit)) fitting(0.0);
+  if (runs.axes > 1) return {std::move(runs), {}};  // identify_axes_runs fits them
   stability::IdentifyResult r = fit(runs, a.options);
   return {std::move(runs), std::move(r)};
 }
 
+// Session files of n > 1 axes: the n-axis fit and report of identify_axes_command.hpp, the
+// runs named by file and cycles.
+int identify_session_axes(const IdentifyArgs& a, const Runs& runs, std::ostream& out,
+                          std::ostream& err) {
+  if (a.plot_path) {
+    throw std::runtime_error(fmt::format(
+        "--plot draws one axis: the session records {} axes (not with several axes)", runs.axes));
+  }
+  IdentifyAxesArgs x;
+  x.files = runs.names;
+  x.device = a.device.value_or("master");
+  x.json = a.json;
+  x.options = a.axes_options;
+  x.options.filter = a.options;
+  return identify_axes_runs(x, runs.axes_runs, out, err);
+}
+
 int identify(const IdentifyArgs& a, std::ostream& out, std::ostream& err) {
+  if (a.axes) return identify_axes(*a.axes, out, err);
   const Read read = read_and_fit(a, err);
+  if (read.runs.axes > 1) return identify_session_axes(a, read.runs, out, err);
+  if (a.axes_models_given) {
+    throw std::runtime_error(
+        "--mass and --damping are for several axes: the session files record one");
+  }
   const Runs& runs = read.runs;
   const stability::IdentifyResult& r = read.result;
   Fitted f{a, runs, r};

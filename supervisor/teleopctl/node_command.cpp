@@ -13,12 +13,15 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <thread>
+#include <vector>
 #include <zmq.hpp>
 
 #include "common/config/config_loader.hpp"
 #include "common/config/node_loader.hpp"
+#include "common/telemetry/cycle_codec.hpp"
 #include "common/transport/zmq_security.hpp"
 #include "common/transport/zmq_sockets.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
@@ -432,29 +435,53 @@ void arm_and_engage(const LaunchPlan& plan, const LaunchedPids& pids, std::ostre
   }
 }
 
+// The newest cycle's position in mm: "+1.234" for one axis, "(+1.234, -0.500, +2.000)" for n
+// (CycleRecord.axes > 1 carries each axis in positions_m and leaves position_m 0); 0 when the
+// message has no cycle.
+std::string position_mm_text(const v1::Telemetry& t) {
+  if (t.cycles_size() == 0) return fmt::format("{:+8.3f}", 0.0);
+  const v1::CycleRecord& c = t.cycles(t.cycles_size() - 1);
+  if (c.axes() <= 1) return fmt::format("{:+8.3f}", c.position_m() * 1e3);
+  // Through the codec: a record of more than 6 axes or mismatched lists is never printed.
+  const std::optional<node::CycleRecordAxes> r = telemetry::axes_from_proto(c);
+  if (!r) return "(a record of " + std::to_string(c.axes()) + " axes refused)";
+  std::string out = "(";
+  for (std::size_t i = 0; i < static_cast<std::size_t>(r->axes); ++i) {
+    out += fmt::format("{}{:+.3f}", i == 0 ? "" : ", ", r->position_m[i] * 1e3);
+  }
+  return out + ")";
+}
+
 std::string launch_state_line(const v1::Telemetry& mt, const v1::Telemetry& st) {
   const auto& ml = mt.link();
-  const double x_m = mt.cycles_size() > 0 ? mt.cycles(mt.cycles_size() - 1).position_m() : 0.0;
-  const double x_s = st.cycles_size() > 0 ? st.cycles(st.cycles_size() - 1).position_m() : 0.0;
   return fmt::format(
-      "master {:<9} slave {:<9} x_m {:+8.3f} mm  x_s {:+8.3f} mm  round trip "
+      "master {:<9} slave {:<9} x_m {} mm  x_s {} mm  round trip "
       "{:.3f} ms ({} samples)  loss {:.4f}  wake-up p99 {:.0f}/{:.0f} us  overruns "
       "{}/{}",
-      mode_name(mt.mode()), mode_name(st.mode()), x_m * 1e3, x_s * 1e3,
+      mode_name(mt.mode()), mode_name(st.mode()), position_mm_text(mt), position_mm_text(st),
       static_cast<double>(ml.round_trip_ns()) * 1e-6, ml.round_trip_samples(), ml.loss_fraction(),
       static_cast<double>(mt.loop().wakeup_p99_ns()) * 1e-3,
       static_cast<double>(st.loop().wakeup_p99_ns()) * 1e-3, mt.loop().overruns(),
       st.loop().overruns());
 }
 
-// The same as launch_state_line, as one JSON document.
+// The same as launch_state_line, as one JSON document: position_m for one axis, positions_m
+// (one entry per axis) for n > 1.
 nlohmann::json launch_state_json(const v1::Telemetry& mt, const v1::Telemetry& st) {
   auto side = [](const v1::Telemetry& t) {
-    const double x_m = t.cycles_size() > 0 ? t.cycles(t.cycles_size() - 1).position_m() : 0.0;
-    return nlohmann::json{{"mode", mode_name(t.mode())},
-                          {"position_m", x_m},
-                          {"wakeup_p99_s", static_cast<double>(t.loop().wakeup_p99_ns()) * 1e-9},
-                          {"overruns", t.loop().overruns()}};
+    nlohmann::json j{{"mode", mode_name(t.mode())},
+                     {"wakeup_p99_s", static_cast<double>(t.loop().wakeup_p99_ns()) * 1e-9},
+                     {"overruns", t.loop().overruns()}};
+    const v1::CycleRecord* c = t.cycles_size() > 0 ? &t.cycles(t.cycles_size() - 1) : nullptr;
+    if (c != nullptr && c->axes() > 1) {
+      const std::optional<node::CycleRecordAxes> r = telemetry::axes_from_proto(*c);
+      j["positions_m"] =
+          r ? std::vector<double>(r->position_m.begin(), r->position_m.begin() + r->axes)
+            : std::vector<double>{};
+    } else {
+      j["position_m"] = c != nullptr ? c->position_m() : 0.0;
+    }
+    return j;
   };
   const auto& ml = mt.link();
   return {{"event", "state"},

@@ -4,6 +4,7 @@
 #include <google/protobuf/text_format.h>
 #include <google/protobuf/util/json_util.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -23,6 +24,7 @@
 #include "common/record/mcap_reader.hpp"
 #include "common/scene/resimulate.hpp"
 #include "common/session/session_reader.hpp"
+#include "common/telemetry/cycle_codec.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/replay_live.hpp"
@@ -198,6 +200,72 @@ int print_channel(const record::SessionReader& session, const ReplayArgs& a, std
   return std::nullopt;
 }
 
+// The most task-space axes of any cycle of either node (1 for one-axis sessions).
+[[nodiscard]] int session_axes(const record::SessionReader& session,
+                               const std::vector<record::MessageView>& master,
+                               const std::vector<record::MessageView>& slave) {
+  int axes = 1;
+  for (const std::vector<record::MessageView>* side : {&master, &slave}) {
+    for (const record::MessageView& m : *side) {
+      const v1::Telemetry t = session.decode<v1::Telemetry>(m);
+      for (const v1::CycleRecord& c : t.cycles()) {
+        axes = std::max(axes, telemetry::axes_of(c));
+      }
+    }
+  }
+  return axes;
+}
+
+// Several axes (issue 18): per axis position_m_i, velocity_m_per_s_i, force_N_i, command_N_i
+// and peer_position_m_i (empty for axes a cycle does not have), then the per-cycle fields. A
+// record the codec refuses is an error naming the file, topic and sequence.
+void write_axes_rows(const record::SessionReader& session,
+                     const std::vector<record::MessageView>& master,
+                     const std::vector<record::MessageView>& slave, int axes,
+                     std::int64_t origin_ns, std::ostream& os) {
+  os << "node,time_s,sequence,mode,axes";
+  for (const char* field :
+       {"position_m", "velocity_m_per_s", "force_N", "command_N", "peer_position_m"}) {
+    for (int i = 0; i < axes; ++i) os << "," << field << "_" << i;
+  }
+  os << ",peer_sequence,peer_age_ns,coupling_weight,flags,wakeup_latency_ns,round_trip_ns,"
+        "master_sequence,fixture_penetration_m\n";
+  std::string line;
+  for (const std::vector<record::MessageView>* side : {&master, &slave}) {
+    const char* node = side == &master ? "master" : "slave";
+    for (const record::MessageView& m : *side) {
+      const v1::Telemetry t = session.decode<v1::Telemetry>(m);
+      for (const v1::CycleRecord& c : t.cycles()) {
+        const std::optional<node::CycleRecordAxes> r = telemetry::axes_from_proto(c);
+        if (!r) {
+          throw std::runtime_error(
+              fmt::format("{}: {} cycle {} (log time {} ns): a record of {} axes the codec refuses",
+                          session.path(), m.channel->topic, c.sequence(), m.log_time_ns, c.axes()));
+        }
+        line.clear();
+        fmt::format_to(std::back_inserter(line), "{},{},{},{},{}", node,
+                       static_cast<double>(r->sample_time_ns - origin_ns) * 1e-9, r->sequence,
+                       v1::NodeMode_Name(c.mode()), r->axes);
+        for (const auto* field : {&r->position_m, &r->velocity_m_per_s, &r->force_N, &r->command_N,
+                                  &r->peer_position_m}) {
+          for (int i = 0; i < axes; ++i) {
+            if (i < r->axes) {
+              fmt::format_to(std::back_inserter(line), ",{}",
+                             (*field)[static_cast<std::size_t>(i)]);
+            } else {
+              line += ",";
+            }
+          }
+        }
+        fmt::format_to(std::back_inserter(line), ",{},{},{},{},{},{},{},{}\n", r->peer_sequence,
+                       r->peer_age_ns, r->coupling_weight, r->flags, r->wakeup_latency_ns,
+                       r->round_trip_ns, r->master_sequence, r->fixture_penetration_m);
+        os << line;
+      }
+    }
+  }
+}
+
 int write_cycles_csv(const record::SessionReader& session, const ReplayArgs& a, std::ostream& out) {
   if (!session.has_topic(topic::kMasterTelemetry) && !session.has_topic(topic::kSlaveTelemetry)) {
     throw std::runtime_error(fmt::format("{}: no {} or {} channel (channels: {})", a.file,
@@ -215,6 +283,15 @@ int write_cycles_csv(const record::SessionReader& session, const ReplayArgs& a, 
   const std::vector<record::MessageView> slave = session.messages_on(topic::kSlaveTelemetry);
   // Time from the master's first cycle (the slave's when there is no master).
   const std::optional<std::int64_t> origin = first_cycle_time(session, master, slave);
+  if (const int axes = session_axes(session, master, slave); axes > 1) {
+    write_axes_rows(session, master, slave, axes, origin.value_or(0), *os);
+    os->flush();
+    if (!*os) {
+      throw std::runtime_error(
+          fmt::format("cannot write '{}'", a.out_path ? *a.out_path : std::string("stdout")));
+    }
+    return kExitOk;
+  }
   *os << "node,time_s,sequence,mode,position_m,velocity_m_per_s,force_N,command_N,"
          "peer_sequence,peer_position_m,peer_age_ns,coupling_weight,flags,wakeup_latency_ns,"
          "round_trip_ns,master_sequence,parameter_change_id\n";
@@ -273,8 +350,72 @@ void add_node_traces(Chart& chart, const std::vector<record::RecordedCycle>& cyc
   chart.panels[1].series.push_back(std::move(force));
 }
 
+// Several axes (issue 18): per axis, each node's position (mm) and load-cell force (N), one
+// colour per axis, the master solid and the slave dashed, lines broken where cycles are missing.
+void add_node_axes_traces(Chart& chart, const std::vector<record::RecordedCycleAxes>& cycles,
+                          std::int64_t origin_ns, const char* node, bool dashed, int axes) {
+  const std::size_t stride = plot_stride(cycles.size());
+  const double nan = std::nan("");
+  for (int k = 0; k < axes; ++k) {
+    const auto i = static_cast<std::size_t>(k);
+    Series position{fmt::format("{} axis {}", node, k), {}, line_colour(i), true};
+    Series force{fmt::format("{} axis {}", node, k), {}, line_colour(i), true};
+    position.dashed = force.dashed = dashed;
+    for (std::size_t j = 0; j < cycles.size(); ++j) {
+      const node::CycleRecordAxes& c = cycles[j].cycle;
+      const bool gap = j > 0 && (cycles[j].session_id != cycles[j - 1].session_id ||
+                                 c.sequence != cycles[j - 1].cycle.sequence + 1);
+      const double t = static_cast<double>(c.sample_time_ns - origin_ns) * 1e-9;
+      if (gap || k >= c.axes) {
+        position.points.emplace_back(t, nan);
+        force.points.emplace_back(t, nan);
+        if (k >= c.axes) continue;
+      }
+      if (gap || j % stride == 0 || j + 1 == cycles.size()) {
+        position.points.emplace_back(t, 1e3 * c.position_m[i]);
+        force.points.emplace_back(t, c.force_N[i]);
+      }
+    }
+    chart.panels[0].series.push_back(std::move(position));
+    chart.panels[1].series.push_back(std::move(force));
+  }
+}
+
+int write_session_axes_plot(const record::SessionReader& session, const ReplayArgs& a, int axes,
+                            std::ostream& out) {
+  const auto read = [&](bool m) {
+    return session.has_topic(topic::telemetry(m)) ? session.cycles_axes(m)
+                                                  : std::vector<record::RecordedCycleAxes>{};
+  };
+  const std::vector<record::RecordedCycleAxes> master = read(true);
+  const std::vector<record::RecordedCycleAxes> slave = read(false);
+  if (master.empty() && slave.empty()) {
+    throw std::runtime_error(fmt::format("{}: no cycles of either node to plot", a.file));
+  }
+  const std::int64_t origin = (master.empty() ? slave : master).front().cycle.sample_time_ns;
+  const std::int64_t last = std::max(master.empty() ? origin : master.back().cycle.sample_time_ns,
+                                     slave.empty() ? origin : slave.back().cycle.sample_time_ns);
+  Chart chart = position_force_chart(
+      fmt::format("Recorded session: positions and forces of {} axes", axes),
+      fmt::format("{}: {} master and {} slave cycles over {:.3f} s", a.file, master.size(),
+                  slave.size(), static_cast<double>(last - origin) * 1e-9));
+  if (!master.empty()) add_node_axes_traces(chart, master, origin, "master", false, axes);
+  if (!slave.empty()) add_node_axes_traces(chart, slave, origin, "slave", true, axes);
+  chart.notes.push_back(
+      "one colour per axis: master solid, slave dashed; the slave's load cell reads its push on "
+      "the environment");
+  write_svg(a.plot_path, chart);
+  out << "wrote " << a.plot_path << "\n";
+  return kExitOk;
+}
+
 int write_session_plot(const record::SessionReader& session, const ReplayArgs& a,
                        std::ostream& out) {
+  if (session.has_topic(topic::kMasterTelemetry) || session.has_topic(topic::kSlaveTelemetry)) {
+    const int axes = session_axes(session, session.messages_on(topic::kMasterTelemetry),
+                                  session.messages_on(topic::kSlaveTelemetry));
+    if (axes > 1) return write_session_axes_plot(session, a, axes, out);
+  }
   const std::vector<record::RecordedCycle> master = session.cycles(true);
   const std::vector<record::RecordedCycle> slave = session.cycles(false);
   if (master.empty() && slave.empty()) {
@@ -482,8 +623,25 @@ constexpr double kConfigPass = 0.12;
 constexpr double kCyclesPass = 0.30;
 constexpr double kResimulation = 0.09;
 
+// The number of axes of the first cycle either node recorded (1 without one).
+[[nodiscard]] int first_cycle_axes(const record::SessionReader& session) {
+  for (const bool master : {true, false}) {
+    for (const record::MessageView& m : session.messages_on(topic::telemetry(master))) {
+      const v1::Telemetry t = session.decode<v1::Telemetry>(m);
+      if (t.cycles_size() > 0) return telemetry::axes_of(t.cycles(0));
+    }
+  }
+  return 1;
+}
+
 int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::ostream& out,
                std::ostream& err) {
+  if (const int axes = first_cycle_axes(session); axes > 1) {
+    throw std::runtime_error(fmt::format(
+        "{}: the nodes recorded {} task-space axes: --resimulate runs one axis (the summary, "
+        "--csv and --plot read every axis)",
+        a.file, axes));
+  }
   // Erased before anything is printed (the output below comes after the analyses).
   std::optional<ProgressLine> progress;
   progress.emplace(err, "replay --resimulate", !a.json && stderr_is_terminal());

@@ -50,19 +50,37 @@ using nlohmann::json;
           {"seconds_histogram", bins}};
 }
 
+// Each task-space axis's position range and largest |force| and |command| (issue 18).
+[[nodiscard]] json per_axis_json(const record::NodeTelemetryStats& s) {
+  json axes = json::array();
+  for (const record::AxisSummary& a : s.per_axis) {
+    axes.push_back({{"min_position_m", a.min_position_m},
+                    {"max_position_m", a.max_position_m},
+                    {"max_abs_force_N", a.max_abs_force_N},
+                    {"max_abs_command_N", a.max_abs_command_N}});
+  }
+  return axes;
+}
+
 [[nodiscard]] json node_json(const record::NodeTelemetryStats& s) {
-  return {{"telemetry_messages", s.messages},
-          {"cycles", s.cycles},
-          {"cycles_missing", s.missing},
-          {"cycles_out_of_order", s.out_of_order},
-          {"restarts", s.restarts},
-          {"cycles_dropped_by_node", s.cycles_dropped},
-          {"flight_records", s.flight_records},
-          {"first_sequence", s.any ? json(s.first_sequence) : json(nullptr)},
-          {"last_sequence", s.any ? json(s.last_sequence) : json(nullptr)},
-          {"modes", s.modes},
-          {"wakeup_latency", wakeup_json(s)},
-          {"overruns", overruns_json(s)}};
+  return {
+      {"telemetry_messages", s.messages},
+      {"cycles", s.cycles},
+      {"cycles_missing", s.missing},
+      {"cycles_out_of_order", s.out_of_order},
+      {"restarts", s.restarts},
+      {"cycles_dropped_by_node", s.cycles_dropped},
+      {"flight_records", s.flight_records},
+      {"first_sequence", s.any ? json(s.first_sequence) : json(nullptr)},
+      {"last_sequence", s.any ? json(s.last_sequence) : json(nullptr)},
+      {"modes", s.modes},
+      {"wakeup_latency", wakeup_json(s)},
+      {"overruns", overruns_json(s)},
+      {"axes", s.axes},
+      {"axes_changes", s.axes_changes},
+      {"refused_records", s.refused},
+      {"first_refused_sequence", s.refused > 0 ? json(s.first_refused_sequence) : json(nullptr)},
+      {"per_axis", per_axis_json(s)}};
 }
 
 [[nodiscard]] json alarm_json(double t, const v1::Alarm& a) {
@@ -195,6 +213,31 @@ void print_header_and_channels(const json& j, std::ostream& out) {
   }
 }
 
+// Nodes of several axes: each axis's position range, largest |F| and |u|; refused records.
+void print_node_axes(const json& n, std::ostream& out) {
+  if (n.contains("refused_records") && n["refused_records"].get<std::uint64_t>() > 0) {
+    out << fmt::format(
+        "         {} cycle records the codec refuses (first: sequence {}), left out of the "
+        "per-axis figures\n",
+        n["refused_records"].get<std::uint64_t>(),
+        n["first_refused_sequence"].get<std::uint64_t>());
+  }
+  if (!n.contains("axes") || n["axes"].get<int>() < 2) return;
+  out << fmt::format("         {} task-space axes{}:\n", n["axes"].get<int>(),
+                     n["axes_changes"].get<std::uint64_t>() > 0
+                         ? fmt::format(" ({} changes of the number of axes)",
+                                       n["axes_changes"].get<std::uint64_t>())
+                         : std::string());
+  int k = 0;
+  for (const json& a : n["per_axis"]) {
+    out << fmt::format(
+        "           axis {}: position {:.3f} .. {:.3f} mm, |force| up to {:.3f} N, |command| up "
+        "to {:.3f} N\n",
+        k++, a["min_position_m"].get<double>() * 1e3, a["max_position_m"].get<double>() * 1e3,
+        a["max_abs_force_N"].get<double>(), a["max_abs_command_N"].get<double>());
+  }
+}
+
 void print_node_cycles(const json& j, std::ostream& out) {
   out << "node cycles:\n";
   for (const char* side : {"master", "slave"}) {
@@ -214,6 +257,7 @@ void print_node_cycles(const json& j, std::ostream& out) {
         n["last_sequence"].get<std::uint64_t>(), n["cycles_missing"].get<std::uint64_t>(),
         n["restarts"].get<std::uint64_t>(), n["cycles_dropped_by_node"].get<std::uint64_t>(),
         n["telemetry_messages"].get<std::uint64_t>(), modes);
+    print_node_axes(n, out);
   }
 }
 

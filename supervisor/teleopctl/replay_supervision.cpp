@@ -7,6 +7,7 @@
 #include <ostream>
 #include <string>
 
+#include "common/telemetry/cycle_codec.hpp"
 #include "supervisor/core/stability_guard.hpp"
 
 namespace teleop::ctl {
@@ -54,6 +55,10 @@ void ReplaySummary::reset() {
   core_ = std::make_unique<supervisor::SupervisorCore>(system_, std::move(o), ports_);
   next_ = 0;
   applied_until_ns_ = 0;
+}
+
+v1::SupervisorStatus ReplaySummary::status() const {
+  return core_->status();  // n > 1 axes: the per-axis figures of the newest cycles included
 }
 
 void ReplaySummary::advance_to(std::uint64_t log_time_ns) {

@@ -44,7 +44,10 @@ class ReplaySummary {
   // Everything logged at or before `log_time_ns` applied; a time earlier than the last one (a
   // seek back) starts again from the beginning of the file.
   void advance_to(std::uint64_t log_time_ns);
-  [[nodiscard]] v1::SupervisorStatus status() const { return core_->status(); }
+  // The core's summary, with each node of n > 1 task-space axes (issue 18) given its newest
+  // cycle per axis (NodeSummary.axes, positions_m, forces_N, commands_N, tracking_errors_m =
+  // alpha x_m - x_s, alpha the configuration's position scaling).
+  [[nodiscard]] v1::SupervisorStatus status() const;
 
  private:
   // A replay commands nothing and publishes through its own sockets, not the core's.

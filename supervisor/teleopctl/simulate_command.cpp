@@ -12,6 +12,7 @@
 #include <sstream>
 #include <string_view>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/scene_loader.hpp"
 #include "common/control/velocity_estimator.hpp"
 #include "common/device/sim_device.hpp"
@@ -25,6 +26,7 @@
 #include "supervisor/core/session_output.hpp"
 #include "supervisor/core/stability_guard.hpp"
 #include "supervisor/teleopctl/analyze_command.hpp"
+#include "supervisor/teleopctl/axes_commands.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/supervisor.pb.h"
@@ -508,6 +510,8 @@ int run_simulate(const SimulateOptions& o, std::ostream& out, std::ostream& err)
     if (o.seed) sets.push_back(fmt::format("scene.seed={}", *o.seed));
     // to_scene_setup validates the parsed file once and builds the sides as the nodes do.
     const config::LoadedConfig cfg = config::parse_config_file(o.scene_path, sets);
+    // Several task-space axes: the n-axis simulator (axes_commands.cpp).
+    if (config::configured_axes(cfg.config) > 1) return run_simulate_axes(cfg, o, out, err);
     const scene::SceneSetup setup = config::to_scene_setup(cfg);
     scene::SimulationResult r;
     {

@@ -352,9 +352,10 @@ TEST(BridgeLive, AnAlarmArrivesAsAlarmAndAsFoxgloveLogWithItsSeverity) {
   ASSERT_NO_FATAL_FAILURE(sys.start_engaged_with_bridge());
   int code = -1;
   Json s;
-  // Two seconds of listening: the e-stop's alarm comes within ~0.1 s on a quiet host, later on
-  // a loaded one (CI's run once saw only a slave overrun alarm within 0.5 s).
-  std::thread client([&] { s = sys.js_check(2.0, "/supervisor/log /supervisor/alarms", code); });
+  // Four seconds of listening: the e-stop's alarm comes within ~0.1 s on a quiet host, later on
+  // a loaded one (CI's runs saw only a slave overrun alarm within 0.5 s, and once, under ASan on
+  // a host whose loops woke 6.5 ms late, only overrun and loss alarms within 2 s).
+  std::thread client([&] { s = sys.js_check(4.0, "/supervisor/log /supervisor/alarms", code); });
   // Once the client has subscribed to both (the bridge says so), the e-stop.
   const bool subscribed = eventually([&] {
     const std::string log = sys.bridge().log();
@@ -402,6 +403,7 @@ void expect_gains(const Json& gains, const v1::Gains& file, const std::string& w
   const auto* r = v1::Gains::GetReflection();
   for (int i = 0; i < d->field_count(); ++i) {
     const auto* f = d->field(i);
+    if (f->is_repeated()) continue;  // the n-axis forms (issue 18), absent from a one-axis file
     ASSERT_TRUE(gains.contains(f->name())) << what << ": no gains." << f->name() << " in " << gains;
     EXPECT_EQ(gains[f->name()].get<double>(), r->GetDouble(file, f)) << what << ": " << f->name();
   }

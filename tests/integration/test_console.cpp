@@ -15,7 +15,10 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 
+#include "common/record/session.hpp"
+#include "common/record/session_recorder.hpp"
 #include "teleop/v1/supervisor.pb.h"
+#include "teleop/v1/telemetry.pb.h"
 #include "tests/integration/cli_harness.hpp"
 #include "tests/integration/node_harness.hpp"
 
@@ -782,6 +785,92 @@ TEST(Console, WithoutATerminalExitsOneNamingTeleopctlStatus) {
   const CliResult r = teleopctl("console < /dev/null");
   EXPECT_EQ(r.exit_code, 1) << r.out;
   EXPECT_NE(r.out.find("teleopctl status"), std::string::npos) << r.out;
+}
+
+// --- several task-space axes (issue 18) ------------------------------------------------------
+
+// 10 s of a 3-axis session at 1 kHz written here, every cycle the same: the master at (3, 4, 0)
+// mm, load cell (0.3, -1.2, 0.4) N, command (0.6, 0.8, 0) N; the slave at (2.9, 4.1, 0.3) mm with
+// the negated forces. Without a /config the replay's summary stands on the paddles (position
+// scaling 1), so by hand: |x_m| = 5.00 mm, |F| = 1.30 N (largest on axis 1), |u| = 1.00 N,
+// tracking error x_m - x_s = (0.1, -0.1, -0.3) mm, largest on axis 2.
+void write_three_axis_session(const fs::path& file) {
+  const std::unique_ptr<record::SessionSink> sink = record::make_session_recorder_at(file);
+  const double x_m[] = {3e-3, 4e-3, 0.0};
+  const double x_s[] = {2.9e-3, 4.1e-3, 0.3e-3};
+  const double f[] = {0.3, -1.2, 0.4};
+  const double u[] = {0.6, 0.8, 0.0};
+  for (int message = 0; message < 100; ++message) {
+    for (const bool master : {true, false}) {
+      v1::Telemetry t;
+      t.set_session_id(master ? 1 : 2);
+      t.set_mode(v1::ENGAGED);
+      t.mutable_loop()->set_period_s(1e-3);
+      for (int k = 0; k < 100; ++k) {
+        const int cycle = 100 * message + k;
+        v1::CycleRecord* c = t.add_cycles();
+        c->set_sequence(static_cast<std::uint64_t>(cycle + 1));
+        c->set_sample_time_ns(1'000'000LL * cycle);
+        c->set_mode(v1::ENGAGED);
+        c->set_axes(3);
+        for (int i = 0; i < 3; ++i) {
+          const double sign = master ? 1.0 : -1.0;
+          c->add_positions_m(master ? x_m[i] : x_s[i]);
+          c->add_velocities_m_per_s(0.0);
+          c->add_forces_n(sign * f[i]);
+          c->add_commands_n(sign * u[i]);
+          c->add_peer_positions_m(master ? x_s[i] : x_m[i]);
+        }
+      }
+      const std::int64_t log_time = 1'000'000LL * (100 * message + 99);
+      sink->record(record::topic::telemetry(master), "teleop.v1.Telemetry", log_time,
+                   t.SerializeAsString());
+    }
+  }
+}
+
+TEST(Console, ThreeAxisNodesShowNormsWorstAxesAndTheirTable) {
+  ASSERT_TRUE(have_tmux()) << kNoTmux;
+  TempDir dir;
+  const fs::path file = dir.path() / "axes.mcap";
+  write_three_axis_session(file);
+  const std::string control = tcp(free_port());
+  const std::string report = tcp(free_port());
+  Process replay(
+      TELEOPCTL_PATH,
+      {"replay", file.string(), "--speed", "1", "--hold", "--control", control, "--report", report,
+       "--master-telemetry", tcp(free_port()), "--slave-telemetry", tcp(free_port())},
+      dir.path() / "replay.log");
+  Terminal term(std::string(TELEOPCTL_PATH) + " console --replay --control " + control +
+                " --report " + report);
+  ASSERT_TRUE(term.started()) << term.start_output();
+  std::string screen;
+  ASSERT_TRUE(
+      term.wait_for_text("3 axes |u| 1.00N  worst: F axis 1 -1.20N, e axis 2 -0.30mm", screen))
+      << screen << "--- replay\n"
+      << replay.log();
+  std::cout << screen;
+  EXPECT_NE(line_starting(screen, "master ENGAGED").find("|x| 5.00mm |F|1.30N"), std::string::npos)
+      << screen;
+  EXPECT_NE(screen.find("3 axes |u| 1.00N  worst: F axis 1 +1.20N, e axis 2 -0.30mm"),
+            std::string::npos)
+      << screen;
+  EXPECT_FALSE(has_line_starting(screen, "axis 0")) << screen;
+  // t: the table, one row per axis, each side's x, F, u and the tracking error.
+  term.key("t");
+  ASSERT_TRUE(
+      term.wait_for([](const std::string& s) { return has_line_starting(s, "axis 2"); }, screen))
+      << screen;
+  std::cout << screen;
+  EXPECT_EQ(line_starting(screen, "axis 1"),
+            "axis 1         4.00  -1.20   0.80         4.10   1.20  -0.80     -0.100")
+      << screen;
+  EXPECT_FALSE(has_line_starting(screen, "axis 3")) << screen;
+  // t again: gone.
+  term.key("t");
+  ASSERT_TRUE(
+      term.wait_for([](const std::string& s) { return !has_line_starting(s, "axis 0"); }, screen))
+      << screen;
 }
 
 }  // namespace

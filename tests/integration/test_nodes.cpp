@@ -402,8 +402,21 @@ TEST(Nodes, DeviceFaultBitFaultsTheNodeAtOnceLatchedAndTheMasterGoesSafeOverTheL
       std::max<std::int64_t>(std::prev(master_safe)->round_trip_ns(), 0);
   std::cout << "slave fault -> master safe " << static_cast<double>(reaction_ns) * 1e-6
             << " ms (round trip " << static_cast<double>(round_trip_ns) * 1e-6 << " ms)\n";
-  EXPECT_GE(reaction_ns, 0);
-  EXPECT_LE(reaction_ns, round_trip_ns / 2 + 2'000'000);
+  // Causality on the clock the cycles ran at: the master's safe cycle woke (its deadline plus
+  // its wake-up latency) after the slave's cycle that read the bit was due. Its deadline alone
+  // may come first: a master cycle that woke late already holds the slave's FAULT state (seen
+  // once on a loaded host, -0.14 ms by deadlines).
+  EXPECT_GE(reaction_ns + master_safe->wakeup_latency_ns(), 0)
+      << "master woke " << master_safe->wakeup_latency_ns() << " ns late";
+  // And within the one-way trip (half the round trip: the newest one, or the link's p99 when a
+  // loaded host made this one slower) plus one cycle of each loop, plus how late the slave's
+  // pressing cycle woke (its state left that much after its deadline). CI's sanitizer stage,
+  // sharing its two cores with a build, once saw 2.82 ms against 2.55 ms by the newest trip.
+  const std::int64_t trip_ns = std::max(round_trip_ns, mt.last()->link().round_trip_p99_ns());
+  EXPECT_LE(reaction_ns,
+            trip_ns / 2 + 2'000'000 + std::max<std::int64_t>(pressed->wakeup_latency_ns(), 0))
+      << "round trip p99 " << mt.last()->link().round_trip_p99_ns() << " ns, slave woke "
+      << pressed->wakeup_latency_ns() << " ns late";
   EXPECT_EQ(mt.last()->mode_reason(), "peer safe, faulted or restarted");
   // Only a command clears the latch.
   ASSERT_TRUE(send_command(ctx, tcp(ports.slave_command), v1::NodeCommand::CLEAR)->ok());

@@ -33,6 +33,8 @@
 #include "common/record/mcap_reader.hpp"
 #include "common/record/mcap_writer.hpp"
 #include "common/record/proto_schema.hpp"
+#include "common/record/session.hpp"
+#include "common/record/session_recorder.hpp"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
 #include "tests/integration/cli_harness.hpp"
@@ -1041,6 +1043,158 @@ TEST(Replay, ResimulationWithASofterFixtureOscillatesLess) {
   r = run(dir, "replay " + file + " --resimulate --set slave.fixture.stiffness_N_per_m=-5");
   EXPECT_EQ(r.exit_code, 1);
   EXPECT_NE(r.err.find("slave.fixture.stiffness_N_per_m"), std::string::npos) << r.err;
+}
+
+// --- several task-space axes (issue 18) ------------------------------------------------------
+
+// A 3-axis session written here through the live session recorder: 2 s at 1 kHz, 100 cycles
+// per telemetry message. Axis i of the master moves as a sine of amplitude (i + 1) mm at 1, 2
+// and 5 Hz, its load cell reads 0.1 (i + 1) N times the same sine and its command is the
+// force's negative; the slave follows at 0.9 of the master's position with the negated force.
+// These sines reach their peaks at sample times (t = 1/(4f), 3/(4f): k = 250, 125, 50 and 750,
+// 375, 150), so each axis's range is +-(i + 1) mm and its largest |force| 0.1 (i + 1) N (to
+// rounding).
+double axis_sine(int i, int k) {
+  constexpr double kHz[] = {1.0, 2.0, 5.0};
+  return std::sin(2.0 * std::numbers::pi * kHz[i] * k * 1e-3);
+}
+
+// `refused`: the master's cycle 1235 (k = 1234) has one force too few, a record the codec
+// refuses.
+std::string write_three_axis_session(const TempDir& dir, bool refused = false) {
+  const std::string path = dir.file("axes.mcap");
+  const std::unique_ptr<teleop::record::SessionSink> sink =
+      teleop::record::make_session_recorder_at(path);
+  for (int message = 0; message < 20; ++message) {
+    for (const bool master : {true, false}) {
+      teleop::v1::Telemetry t;
+      t.set_session_id(master ? 1 : 2);
+      t.mutable_loop()->set_period_s(1e-3);
+      for (int j = 0; j < 100; ++j) {
+        const int k = 100 * message + j;
+        teleop::v1::CycleRecord* c = t.add_cycles();
+        c->set_sequence(static_cast<std::uint64_t>(k + 1));
+        c->set_sample_time_ns(1'000'000LL * k);
+        c->set_mode(teleop::v1::ENGAGED);
+        c->set_axes(3);
+        for (int i = 0; i < 3; ++i) {
+          const double x = 1e-3 * (i + 1) * axis_sine(i, k);
+          const double f = 0.1 * (i + 1) * axis_sine(i, k);
+          c->add_positions_m(master ? x : 0.9 * x);
+          c->add_velocities_m_per_s(0.0);
+          c->add_forces_n(master ? f : -f);
+          c->add_commands_n(master ? -f : f);
+          c->add_peer_positions_m(master ? 0.9 * x : x);
+        }
+        if (refused && master && k == 1234) c->mutable_forces_n()->RemoveLast();
+      }
+      sink->record(teleop::record::topic::telemetry(master), "teleop.v1.Telemetry",
+                   1'000'000LL * (100 * message + 99), t.SerializeAsString());
+    }
+  }
+  return path;
+}
+
+TEST(ReplayAxes, SummaryGivesEachAxisItsRangeAndPeaks) {
+  const TempDir dir;
+  const std::string file = write_three_axis_session(dir);
+  const SplitResult r = run(dir, "replay " + file + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const json j = json::parse(r.out);
+  for (const char* side : {"master", "slave"}) {
+    SCOPED_TRACE(side);
+    const json& n = j["nodes"][side];
+    EXPECT_EQ(n["cycles"].get<int>(), 2000);
+    EXPECT_EQ(n["axes"].get<int>(), 3);
+    EXPECT_EQ(n["refused_records"].get<int>(), 0);
+    ASSERT_EQ(n["per_axis"].size(), 3U);
+    const double scale = std::string(side) == "master" ? 1.0 : 0.9;
+    for (int i = 0; i < 3; ++i) {
+      const json& a = n["per_axis"][static_cast<std::size_t>(i)];
+      EXPECT_NEAR(a["max_position_m"].get<double>(), scale * 1e-3 * (i + 1), 1e-12) << i;
+      EXPECT_NEAR(a["min_position_m"].get<double>(), -scale * 1e-3 * (i + 1), 1e-12) << i;
+      EXPECT_NEAR(a["max_abs_force_N"].get<double>(), 0.1 * (i + 1), 1e-12) << i;
+      EXPECT_NEAR(a["max_abs_command_N"].get<double>(), 0.1 * (i + 1), 1e-12) << i;
+    }
+  }
+  const SplitResult text = run(dir, "replay " + file);
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("3 task-space axes"), std::string::npos) << text.out;
+  EXPECT_NE(text.out.find("axis 2: position -3.000 .. 3.000 mm, |force| up to 0.300 N"),
+            std::string::npos)
+      << text.out;
+}
+
+TEST(ReplayAxes, CsvHasEachAxisColumnsWithTheWrittenValues) {
+  const TempDir dir;
+  const std::string file = write_three_axis_session(dir);
+  const SplitResult r = run(dir, "replay " + file + " --csv");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Csv csv = parse_csv(r.out);
+  ASSERT_EQ(csv.rows.size(), 4000U);  // master rows first, then the slave's
+  for (const std::size_t row : {std::size_t{0}, std::size_t{250}, std::size_t{1999}}) {
+    const int k = static_cast<int>(row);
+    EXPECT_EQ(csv.rows[row][csv.col("node")], "master");
+    EXPECT_EQ(csv.num(row, "axes"), 3.0);
+    EXPECT_NEAR(csv.num(row, "time_s"), k * 1e-3, 1e-12);
+    for (int i = 0; i < 3; ++i) {
+      const std::string n = std::to_string(i);
+      // Written as the shortest round trip: the same double back.
+      EXPECT_EQ(csv.num(row, "position_m_" + n), 1e-3 * (i + 1) * axis_sine(i, k)) << row;
+      EXPECT_EQ(csv.num(row, "force_N_" + n), 0.1 * (i + 1) * axis_sine(i, k)) << row;
+      EXPECT_EQ(csv.num(2000 + row, "position_m_" + n), 0.9 * (1e-3 * (i + 1) * axis_sine(i, k)));
+      EXPECT_EQ(csv.num(2000 + row, "peer_position_m_" + n), 1e-3 * (i + 1) * axis_sine(i, k));
+    }
+  }
+  EXPECT_EQ(csv.rows[2000][csv.col("node")], "slave");
+}
+
+// A record the codec refuses: the summary counts it and names its sequence; the CSV and the plot
+// stop with an error naming the file, the topic and the cycle, exit 1.
+TEST(ReplayAxes, ARefusedRecordIsCountedOrNamedNeverACrash) {
+  const TempDir dir;
+  const std::string file = write_three_axis_session(dir, true);
+  const SplitResult r = run(dir, "replay " + file + " --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j["nodes"]["master"]["refused_records"].get<int>(), 1);
+  EXPECT_EQ(j["nodes"]["master"]["first_refused_sequence"].get<int>(), 1235);
+  EXPECT_EQ(j["nodes"]["slave"]["refused_records"].get<int>(), 0);
+  for (const std::string& action : {std::string("--csv"), "--plot " + dir.file("x.svg")}) {
+    const SplitResult bad = run(dir, "replay " + file + " " + action);
+    EXPECT_EQ(bad.exit_code, 1) << action << ": " << bad.out << bad.err;
+    EXPECT_NE(bad.err.find(file + ": /master/telemetry cycle 1235 (log time 1299000000 ns): "),
+              std::string::npos)
+        << action << ": " << bad.err;
+  }
+}
+
+// --resimulate runs one axis: refused by name, exit 1, before any work.
+TEST(ReplayAxes, ResimulateRefusesSeveralAxesSayingSo) {
+  const TempDir dir;
+  const std::string file = write_three_axis_session(dir);
+  const SplitResult r = run(dir, "replay " + file + " --resimulate");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find(file + ": the nodes recorded 3 task-space axes: --resimulate runs one axis"),
+            std::string::npos)
+      << r.err;
+}
+
+// The plot: one position and one force trace per axis and node (6 each), labelled by axis.
+TEST(ReplayAxes, PlotDrawsEveryAxisOfBothNodes) {
+  const TempDir dir;
+  const std::string file = write_three_axis_session(dir);
+  const std::string svg = dir.file("axes.svg");
+  const SplitResult r = run(dir, "replay " + file + " --plot " + svg);
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const std::string text = read_text(svg);
+  for (const char* node : {"master", "slave"}) {
+    for (int i = 0; i < 3; ++i) {
+      const std::string label = std::string(node) + " axis " + std::to_string(i);
+      EXPECT_NE(text.find(label), std::string::npos) << label;
+    }
+  }
+  EXPECT_NE(text.find("positions and forces of 3 axes"), std::string::npos);
 }
 
 }  // namespace

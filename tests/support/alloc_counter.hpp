@@ -10,6 +10,7 @@
 #include <atomic>
 #include <cerrno>
 #include <cstddef>
+#include <cstdlib>
 
 namespace teleop::test {
 
@@ -37,6 +38,16 @@ inline void start_counting(bool this_thread_only) {
 inline long stop_counting() {
   alloc_counter().counting.store(false);
   return alloc_counter().calls.load();
+}
+
+// The counter's own check: one malloc and one free in a window, through volatile pointers so
+// that the compiler cannot pair up and elide the calls. A working counter gives 2.
+inline long count_malloc_and_free() {
+  void* (*volatile do_malloc)(std::size_t) = &std::malloc;
+  void (*volatile do_free)(void*) = &std::free;
+  start_counting(false);
+  do_free(do_malloc(64));
+  return stop_counting();
 }
 
 inline void count_allocator_call() noexcept {

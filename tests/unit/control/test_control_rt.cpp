@@ -18,13 +18,7 @@
 #include "common/control/master_law.hpp"
 #include "common/control/slave_law.hpp"
 #include "tests/support/alloc_counter.hpp"
-
-namespace {
-
-void open_window() noexcept { teleop::test::start_counting(false); }
-long close_window() noexcept { return teleop::test::stop_counting(); }
-
-}  // namespace
+#include "tests/unit/control/control_test_util.hpp"
 
 namespace teleop::control {
 namespace {
@@ -32,46 +26,21 @@ namespace {
 constexpr int kSteps = 10000;
 constexpr double kT = 1e-3;
 
-// Every feature on, so every branch of the step runs: fixtures, filter, force channel,
-// limits, clutch fades.
-[[nodiscard]] LawParams busy_params() {
-  LawParams p;
-  p.period_s = kT;
-  p.gains = {
-      .kpm = 400.0, .kps = 500.0, .kdm = 4.0, .kds = 5.0, .kvm = 1.0, .kvs = 1.5, .kfm = 0.5};
-  p.scaling = {.position = 1.5, .force = 0.8};
-  p.master_fixture = {800.0, 0.01};
-  p.slave_fixture = {1000.0, 0.015};
-  p.velocity_cutoff_hz = 200.0;
-  p.master_actuator = {4.0, 2000.0};
-  p.slave_actuator = {6.0, 3000.0};
-  p.slave_limits = {-0.03, 0.03, 0.5, 5.0};
-  p.clutch_fade_s = 0.02;
-  return p;
-}
-
 TEST(RealTime, CounterSeesAllocations) {
-  // Through volatile pointers, so the compiler cannot pair up and elide the calls.
-  void* (*volatile do_malloc)(std::size_t) = &std::malloc;
-  void (*volatile do_free)(void*) = &std::free;
-  open_window();
-  void* p = do_malloc(64);
-  do_free(p);
-  const long calls = close_window();
-  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(teleop::test::count_malloc_and_free(), 2);
 
   // libstdc++'s operator new ends in malloc, so C++ allocations are counted too. (Called
   // through pointers: the compiler may elide a new-expression paired with its delete.)
   void* (*volatile do_new)(std::size_t) = static_cast<void* (*)(std::size_t)>(&::operator new);
   void (*volatile do_delete)(void*) noexcept =
       static_cast<void (*)(void*) noexcept>(&::operator delete);
-  open_window();
+  teleop::test::start_counting(false);
   do_delete(do_new(100));
-  EXPECT_EQ(close_window(), 2);
+  EXPECT_EQ(teleop::test::stop_counting(), 2);
 }
 
 TEST(RealTime, MasterAndSlaveStepsDoNotAllocate) {
-  const LawParams params = busy_params();
+  const LawParams params = test::busy_params();
   MasterLaw master(params);
   SlaveLaw slave(params);
   std::vector<double> xm(kSteps);
@@ -86,7 +55,7 @@ TEST(RealTime, MasterAndSlaveStepsDoNotAllocate) {
   double sink = 0.0;
   int flags = 0;
 
-  open_window();
+  teleop::test::start_counting(false);
   for (int k = 0; k < kSteps; ++k) {
     const std::size_t i = static_cast<std::size_t>(k);
     if (k % 1000 == 300) master.set_clutch(true);
@@ -107,7 +76,7 @@ TEST(RealTime, MasterAndSlaveStepsDoNotAllocate) {
     flags += cm.flags.saturated + cm.flags.rate_limited + cs.flags.limit_violation +
              cs.flags.reference_limited + cm.flags.input_fault;
   }
-  const long calls = close_window();
+  const long calls = teleop::test::stop_counting();
 
   EXPECT_EQ(calls, 0) << "allocator calls in " << kSteps << " master + slave steps";
   EXPECT_TRUE(std::isfinite(sink));
@@ -129,7 +98,7 @@ TEST(RealTime, ForceLoopStepsDoNotAllocate) {
   }
   double sink = 0.0;
 
-  open_window();
+  teleop::test::start_counting(false);
   for (int k = 0; k < kSteps; ++k) {
     const std::size_t i = static_cast<std::size_t>(k);
     const double sensed = 125.0 * (x[i] - 0.03) * 0.9;
@@ -140,7 +109,7 @@ TEST(RealTime, ForceLoopStepsDoNotAllocate) {
       loop.reset();
     }
   }
-  const long calls = close_window();
+  const long calls = teleop::test::stop_counting();
 
   EXPECT_EQ(calls, 0) << "allocator calls in " << kSteps << " force-loop steps";
   EXPECT_TRUE(std::isfinite(sink));

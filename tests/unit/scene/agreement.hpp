@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <vector>
 
@@ -24,6 +25,32 @@ struct Outcome {
   bool settled{false};    // the last window's amplitude is below 1 um
   bool sustained{false};  // the simulator's oscillation detector fired
   double amplitude_m{0.0};
+};
+
+// A campaign's tally (test_agreement.cpp, test_agreement_axes.cpp): a case outside the band
+// |zeta| <= kBand must settle without a sustained oscillation when zeta > kBand and sustain one
+// when zeta < -kBand.
+struct CampaignTally {
+  static constexpr double kBand = 0.02;
+  int outside{0};
+  int agree{0};
+  int stable_cases{0};
+  int unstable_cases{0};
+  int inside_band{0};
+
+  [[nodiscard]] static bool in_band(double zeta) { return std::abs(zeta) <= kBand; }
+  // One case outside the band; true when the simulation did as predicted.
+  bool add(double zeta, bool settled, bool sustained) {
+    ++outside;
+    const bool ok = zeta > kBand ? (settled && !sustained) : sustained;
+    (zeta > kBand ? stable_cases : unstable_cases) += 1;
+    agree += ok ? 1 : 0;
+    return ok;
+  }
+  void print() const {
+    std::printf("agreement: %d of %d outside |zeta| <= %.2f (%d stable, %d unstable), %d inside\n",
+                agree, outside, kBand, stable_cases, unstable_cases, inside_band);
+  }
 };
 
 inline Case random_case(std::mt19937& rng, bool ideal) {

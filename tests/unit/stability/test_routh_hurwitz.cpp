@@ -126,7 +126,8 @@ TEST(RouthHurwitz, RandomPolynomialsOfDegreeOneToEight) {
       int remaining = degree;
       while (remaining > 0) {
         if (remaining >= 2 && coin(rng) == 1) {
-          pairs.emplace_back(real_part(rng), imag_part(rng));
+          const double re = real_part(rng);  // two statements: argument order is unspecified
+          pairs.emplace_back(re, imag_part(rng));
           remaining -= 2;
         } else {
           reals.push_back(real_part(rng));

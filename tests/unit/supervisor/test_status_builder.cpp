@@ -577,5 +577,62 @@ TEST(StatusBuilderAlignment, TheNewestCyclesAlignmentErrorReachesTheSummary) {
   EXPECT_EQ(summary(b, kS + 5 * kMs).alignment_error_m(), 0.016 - 0.001 * 4);
 }
 
+// ------------------------------------------------------------------------------- n > 1 axes
+
+// The live summary of a three-axis node carries its newest cycle per axis (the console's norms
+// and worst axes read them); tracking errors alpha x_m - x_s with alpha = 2, by hand:
+// master (1, 2, 3) mm, peer slave (1.5, 4, 6.5) mm -> (0.5, 0, -0.5) mm.
+TEST(StatusBuilderAxes, ThreeAxisCyclesFillEveryAxisAndTheTrackingErrors) {
+  NodeSummaryBuilder master(true, 0.01, 1000.0, 5.0, 0.05, 2.0);
+  NodeSummaryBuilder slave(false, 0.01, 1000.0, 5.0, 0.05, 2.0);
+  const auto three = [](const std::vector<double>& own, const std::vector<double>& peer,
+                        const std::vector<double>& force) {
+    v1::CycleRecord c;
+    c.set_sample_time_ns(kS);
+    c.set_mode(v1::ENGAGED);
+    c.set_axes(3);
+    for (std::size_t i = 0; i < 3; ++i) {
+      c.add_positions_m(own[i]);
+      c.add_velocities_m_per_s(0.0);
+      c.add_forces_n(force[i]);
+      c.add_commands_n(-force[i]);
+      c.add_peer_positions_m(peer[i]);
+    }
+    return c;
+  };
+  const std::vector<double> x_m{1e-3, 2e-3, 3e-3};
+  const std::vector<double> x_s{1.5e-3, 4e-3, 6.5e-3};
+  send_in_batches(master, {three(x_m, x_s, {0.5, -1.0, 2.0})}, 1);
+  send_in_batches(slave, {three(x_s, x_m, {0.0, 0.0, -3.0})}, 1);
+  const v1::NodeSummary m = summary(master, kS);
+  ASSERT_EQ(m.axes(), 3U);
+  ASSERT_EQ(m.positions_m_size(), 3);
+  EXPECT_EQ(m.positions_m(2), 3e-3);
+  EXPECT_EQ(m.forces_n(1), -1.0);
+  EXPECT_EQ(m.commands_n(2), -2.0);
+  ASSERT_EQ(m.tracking_errors_m_size(), 3);
+  EXPECT_NEAR(m.tracking_errors_m(0), 0.5e-3, 1e-15);
+  EXPECT_NEAR(m.tracking_errors_m(1), 0.0, 1e-15);
+  EXPECT_NEAR(m.tracking_errors_m(2), -0.5e-3, 1e-15);
+  // The slave's view: its own position is x_s, its peer's x_m; the same errors.
+  const v1::NodeSummary s = summary(slave, kS);
+  ASSERT_EQ(s.tracking_errors_m_size(), 3);
+  EXPECT_NEAR(s.tracking_errors_m(2), -0.5e-3, 1e-15);
+  EXPECT_EQ(s.forces_n(2), -3.0);
+  // The traces are the norms: |x_m| = sqrt(1 + 4 + 9) mm, |F_m| = sqrt(0.25 + 1 + 4) N; the
+  // penetration trace is the record's deepest plane (0 here: the cycle says none).
+  ASSERT_GE(m.position_trace_m().max_size(), 1);
+  EXPECT_NEAR(m.position_trace_m().max(m.position_trace_m().max_size() - 1), std::sqrt(14.0) * 1e-3,
+              1e-9);
+  EXPECT_NEAR(m.force_trace_n().max(m.force_trace_n().max_size() - 1), std::sqrt(5.25), 1e-6);
+  // A one-axis node's summary keeps the lists empty.
+  NodeSummaryBuilder one(true, 0.01, 1000.0);
+  send_in_batches(one, {cycle(kS, 0.002)}, 1);
+  const v1::NodeSummary o = summary(one, kS);
+  EXPECT_EQ(o.axes(), 0U);
+  EXPECT_EQ(o.positions_m_size(), 0);
+  EXPECT_EQ(o.position_m(), 0.002);
+}
+
 }  // namespace
 }  // namespace teleop::supervisor

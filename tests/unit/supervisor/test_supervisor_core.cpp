@@ -547,6 +547,28 @@ TEST(SupervisorCore, AChangeOneNodeRefusesIsRolledBackOnBoth) {
       << crit.back().action();
 }
 
+// Issue 18 attack: a change request carrying a per-axis list or a gain matrix would have been
+// reduced to its scalars (from_proto) and applied without them. Refused naming the field; no
+// RETUNE reaches a node.
+TEST(SupervisorCore, AChangeWithNAxisGainsIsRefusedNamingTheFieldNotDropped) {
+  const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
+  FakeNodes nodes(c);
+  SupervisorCore core(c, {}, nodes);
+  core.start(kT0);
+  nodes.run(core, kT0, kT0 + 300 * kMs, still);
+  const std::size_t retunes = nodes.sent_of(v1::NodeCommand::RETUNE).size();
+  v1::SupervisorRequest change;
+  change.mutable_change()->mutable_gains()->set_kps(800.0);
+  for (const double v : {800.0, 0.0, 0.0, 800.0}) {
+    change.mutable_change()->mutable_gains()->add_kps_matrix(v);
+  }
+  const v1::SupervisorReply r = core.on_request(change, "", kT0 + 300 * kMs);
+  EXPECT_FALSE(r.change().accepted());
+  EXPECT_NE(r.change().reason().find("gains.kps_matrix: an n-axis field"), std::string::npos)
+      << r.change().reason();
+  EXPECT_EQ(nodes.sent_of(v1::NodeCommand::RETUNE).size(), retunes);
+}
+
 // For live viewers (teleopctl bridge): the configuration in force -- the file's, with the
 // values of each applied change -- at start, at once after a change applied (after that
 // change's record), and again once a second; every change decided, applied or refused,
