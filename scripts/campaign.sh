@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The stress, soak and fault campaign (issue 7) in one command, with a report at the end:
 #   ./scripts/campaign.sh            the full campaign (about 20 minutes: 10-minute soak)
-#   ./scripts/campaign.sh --short    the short version (a few minutes; CI runs it on its Release build
-#                                    with the rest part: .ci/run)
+#   ./scripts/campaign.sh --short    the short version (a few minutes; CI runs its analyser, soak
+#                                    and fuzz parts on its Release build: .ci/run)
 # Environment: SOAK_S (soak seconds), FUZZ_S (seconds per fuzz target), CASES (analyser cases),
 # PARTS (a subset of: analyser faults hostile rest fuzz soak), BUILD (the build directory the
 # parts run on, default build/; CI's is its Release build).
