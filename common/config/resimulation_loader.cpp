@@ -1,5 +1,10 @@
 #include "common/config/resimulation_loader.hpp"
 
+#include <stdexcept>
+
+#include "common/config/axes_config.hpp"
+#include "common/config/axes_scene_loader.hpp"
+#include "common/config/node_loader.hpp"
 #include "common/config/scene_loader.hpp"
 #include "common/config/system_compiler.hpp"
 #include "common/scene/lockstep.hpp"
@@ -56,6 +61,41 @@ std::optional<Resimulation> to_resimulation(const LoadedConfig& config,
   r.position_scaling = params.scaling.position;
   r.slave_fixture = params.slave_fixture;
   return out;
+}
+
+scene::AxesResimulationSetup to_axes_resimulation(const LoadedConfig& config,
+                                                  const Eigen::VectorXd& recorded_master0_m,
+                                                  const Eigen::VectorXd& recorded_slave0_m) {
+  scene::AxesResimulationSetup r;
+  TeleopAxesParams params;
+  if (config.config.has_scene()) {
+    const scene::AxesSceneSetup setup = to_axes_scene_setup(config);
+    scene::AxesStart start;
+    try {
+      start = scene::axes_start(setup);
+    } catch (const std::invalid_argument& e) {
+      throw ConfigError(config.source_name + ": " + e.what());
+    }
+    params = setup.teleop;
+    r.law = start.law;
+    r.slave_device = setup.teleop.slave_device;
+    r.slave_environment = setup.slave_environment;
+    r.master0_m = start.master_m;
+    r.slave0_m = start.slave_m;
+  } else {
+    const NodeSetup node = to_node_axes_setup(config, transport::Role::kSlave);
+    params = to_axes_params(config);
+    r.law = node.axes_settings.law;
+    r.slave_device = node.sim_axes.plant.device;
+    r.slave_environment = node.sim_axes.plant.planes;
+    r.master0_m = recorded_master0_m;
+    r.slave0_m = recorded_slave0_m;
+  }
+  r.sample_rate_hz = params.sample_rate_hz;
+  r.round_trip_delay_samples = params.round_trip_delay_samples;
+  r.position_scaling = params.scaling.position;
+  r.slave_planes = params.slave_planes;
+  return r;
 }
 
 }  // namespace teleop::config

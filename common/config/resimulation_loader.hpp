@@ -6,6 +6,7 @@
 
 #include "common/config/config_loader.hpp"
 #include "common/device/sim_device.hpp"
+#include "common/scene/lockstep_axes.hpp"
 #include "common/scene/resimulate.hpp"
 
 namespace teleop::config {
@@ -27,5 +28,14 @@ struct Resimulation {
                                                           const LoadedConfig& recorded,
                                                           double recorded_master0_m,
                                                           double recorded_slave0_m);
+
+// The same for a configuration of several axes (axes > 1, `replay --resimulate` of an n-axis
+// session): with a scene, the law, the slave's device and environment as the n-axis lockstep
+// simulator builds them (to_axes_scene_setup), starting where it starts (scene::axes_start);
+// without one, as the n-axis slave node builds them (to_node_axes_setup: its device's plant,
+// free space), starting where the recording did. Throws ConfigError as those do.
+[[nodiscard]] scene::AxesResimulationSetup to_axes_resimulation(
+    const LoadedConfig& config, const Eigen::VectorXd& recorded_master0_m,
+    const Eigen::VectorXd& recorded_slave0_m);
 
 }  // namespace teleop::config

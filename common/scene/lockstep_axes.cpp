@@ -8,6 +8,8 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <tuple>
+#include <utility>
 
 #include "common/control/law_axes.hpp"
 #include "common/control/velocity_estimator.hpp"
@@ -208,20 +210,29 @@ class AxesLaws {
     slave_state_.force_N = AxisVector::Zero(n);
   }
 
+  // `coupled` false: the master's state reaches the slave as not valid (a master disarmed or
+  // idle in a recording); `clutched`: the master indexes.
   void step(long k, const AxisVector& xm, const AxisVector& xs, const AxisVector& fe,
-            control::CommandAxes& cm, control::CommandAxes& cs) {
+            control::CommandAxes& cm, control::CommandAxes& cs, bool coupled = true,
+            bool clutched = false) {
     slave_state_.position_m = xs;
     for (Eigen::Index i = 0; i < xs.size(); ++i) {
       slave_state_.velocity_m_per_s(i) = velocity_[static_cast<std::size_t>(i)].step(xs(i));
     }
     slave_state_.force_N = fe;
     slave_state_.valid = !slave_.faulted();
+    master_.set_clutch(clutched);
     cm = master_.step(xm, slave_state_);
-    in_flight_[static_cast<std::size_t>(k % (delay_ + 1))] = master_.peer_state();
-    const control::PeerStateAxes& delayed =
-        in_flight_[static_cast<std::size_t>((k + 1) % (delay_ + 1))];
-    cs = slave_.step(xs, fe, delayed);
+    control::PeerStateAxes& sent = in_flight_[static_cast<std::size_t>(k % (delay_ + 1))];
+    sent = master_.peer_state();
+    sent.valid = sent.valid && coupled;
+    received_ = &in_flight_[static_cast<std::size_t>((k + 1) % (delay_ + 1))];
+    cs = slave_.step(xs, fe, *received_);
   }
+  // After step(): the master's own filtered velocity, the slave's, and what the slave received.
+  [[nodiscard]] AxisVector master_velocity() const { return master_.peer_state().velocity_m_per_s; }
+  [[nodiscard]] const AxisVector& slave_velocity() const { return slave_state_.velocity_m_per_s; }
+  [[nodiscard]] const control::PeerStateAxes& received() const { return *received_; }
 
  private:
   control::MasterLawAxes master_;
@@ -230,7 +241,15 @@ class AxesLaws {
   int delay_;
   std::vector<control::PeerStateAxes> in_flight_{};
   control::PeerStateAxes slave_state_{};
+  const control::PeerStateAxes* received_{nullptr};
 };
+
+void observe(const AxesCycleObserver& observer, long k, const AxisVector& xm, const AxisVector& xs,
+             const AxisVector& fh, const AxisVector& fe, const AxesLaws& laws,
+             const control::CommandAxes& cm, const control::CommandAxes& cs) {
+  const AxisVector vm = laws.master_velocity();
+  observer(AxesCycleView{k, xm, xs, fh, fe, vm, laws.slave_velocity(), cm, cs, laws.received()});
+}
 
 std::vector<std::string> columns_of(int n) {
   std::vector<std::string> c{"time_s"};
@@ -274,31 +293,42 @@ AxesEquilibrium static_equilibrium_axes(const TeleopAxesParams& params,
       "or coupling spring) on some axis");
 }
 
-AxesSimulationResult simulate_axes(const AxesSceneSetup& s, const Progress& progress) {
+AxesStart axes_start(const AxesSceneSetup& s) {
+  const int n = s.teleop.axes;
+  AxesStart start;
+  start.law = s.law ? *s.law : control::from_teleop_axes_params(s.teleop);
+  start.master_m = Eigen::VectorXd::Zero(n);
+  start.slave_m = Eigen::VectorXd::Zero(n);
+  if (s.equilibrium_perturbation_m) {
+    const Eigen::VectorXd push0 = s.push_profile.at(0.0) * s.push_direction.normalized();
+    const AxesEquilibrium eq = static_equilibrium_axes(s.teleop, push0, s.slave_environment);
+    start.master_m = eq.master_m;
+    start.slave_m = eq.slave_m + *s.equilibrium_perturbation_m;
+    start.equilibrium = eq;
+    start.law.clutch_fade_s = 0.0;  // coupled at the equilibrium already: no fade-in transient
+  }
+  return start;
+}
+
+AxesSimulationResult simulate_axes(const AxesSceneSetup& s, const Progress& progress,
+                                   const AxesCycleObserver& observer) {
   check_setup(s);
   const int n = s.teleop.axes;
   const double rate = s.teleop.sample_rate_hz;
   const double t_s = 1.0 / rate;
   const auto period = std::chrono::nanoseconds(std::llround(1e9 / rate));
-  control::LawAxesParams law = s.law ? *s.law : control::from_teleop_axes_params(s.teleop);
+  const AxesStart start = axes_start(s);
   const AxisVector direction = s.push_direction.normalized();
   AxesSimulationSummary sum;
   sum.axes = n;
-  AxisVector xm0 = AxisVector::Zero(n);
-  AxisVector xs0 = AxisVector::Zero(n);
-  if (s.equilibrium_perturbation_m) {
-    const Eigen::VectorXd push0 = s.push_profile.at(0.0) * s.push_direction.normalized();
-    const AxesEquilibrium eq = static_equilibrium_axes(s.teleop, push0, s.slave_environment);
-    xm0 = eq.master_m;
-    xs0 = eq.slave_m + *s.equilibrium_perturbation_m;
-    sum.equilibrium = eq;
-    law.clutch_fade_s = 0.0;  // coupled at the equilibrium already: no fade-in transient
-  }
+  const AxisVector xm0 = start.master_m;
+  const AxisVector xs0 = start.slave_m;
+  sum.equilibrium = start.equilibrium;
   sim::PlantAxes master(plant_of(s.teleop.master_device, &s.teleop.human, {}), period);
   sim::PlantAxes slave(plant_of(s.teleop.slave_device, nullptr, s.slave_environment), period);
   master.reset({xm0, AxisVector::Zero(n)});
   slave.reset({xs0, AxisVector::Zero(n)});
-  AxesLaws laws(law, t_s, s.teleop.round_trip_delay_samples, xm0, xs0);
+  AxesLaws laws(start.law, t_s, s.teleop.round_trip_delay_samples, xm0, xs0);
 
   const long steps = std::lround(s.duration_s * rate);
   const long every = decimation(rate, s.output_rate_hz);
@@ -326,6 +356,7 @@ AxesSimulationResult simulate_axes(const AxesSceneSetup& s, const Progress& prog
     // The load cell reads the force on the environment (the one-axis plant's F_e >= 0 sign).
     const AxisVector fe = -slave.output().environment_force_N;
     laws.step(k, xm, xs, fe, cm, cs);
+    if (observer) observe(observer, k, xm, xs, master.output().human_force_N, fe, laws, cm, cs);
     sum.fault = sum.fault || cm.flags.input_fault || cs.flags.input_fault;
     // The master is pushed by -F_am (F_h - F_am = Z_m X_m); the slave by +F_as.
     const AxisVector um = -cm.force_N;
@@ -368,6 +399,87 @@ AxesSimulationResult simulate_axes(const AxesSceneSetup& s, const Progress& prog
   sum.real_time_factor = sum.wall_time_s > 0.0 ? sum.duration_s / sum.wall_time_s : 0.0;
   out.summary = sum;
   if (progress) progress(1.0);
+  return out;
+}
+
+AxesSlaveOutcomeMeter::AxesSlaveOutcomeMeter(int axes, double position_scaling,
+                                             std::vector<PlaneFixtureParams> planes)
+    : alpha_(position_scaling),
+      planes_(std::move(planes)),
+      positions_(static_cast<std::size_t>(std::max(axes, 0))) {}
+
+void AxesSlaveOutcomeMeter::add(const Eigen::VectorXd& slave_m,
+                                const std::optional<Eigen::VectorXd>& master_m) {
+  for (std::size_t i = 0; i < positions_.size(); ++i) {
+    positions_[i].push_back(slave_m(static_cast<Eigen::Index>(i)));
+  }
+  if (master_m) {
+    sum_sq_ += (alpha_ * *master_m - slave_m).squaredNorm();
+    ++tracked_;
+  }
+  max_penetration_m_ = std::max(max_penetration_m_, penetration(planes_, slave_m));
+}
+
+AxesSlaveOutcome AxesSlaveOutcomeMeter::finish(double period_s) const {
+  AxesSlaveOutcome o;
+  o.cycles = positions_.empty() ? 0 : positions_.front().size();
+  o.tracking_rms_m = tracked_ > 0 ? std::sqrt(sum_sq_ / static_cast<double>(tracked_)) : 0.0;
+  o.max_penetration_m = max_penetration_m_;
+  const double duration_s = static_cast<double>(o.cycles) * period_s;
+  if (o.cycles > 4) {
+    std::tie(o.oscillation, o.oscillation_axis) =
+        worst_axis(positions_, period_s, std::min(1.0, 0.25 * duration_s));
+  }
+  return o;
+}
+
+AxesResimulation resimulate_axes(const AxesResimulationSetup& setup,
+                                 const std::vector<AxesMasterCycle>& master,
+                                 const Progress& progress) {
+  const int n = setup.law.axes;
+  if (setup.master0_m.size() != n || setup.slave0_m.size() != n) {
+    throw std::invalid_argument("resimulation: the start positions must have " + std::to_string(n) +
+                                " entries");
+  }
+  const double t_s = 1.0 / setup.sample_rate_hz;
+  const auto period = std::chrono::nanoseconds(std::llround(1e9 / setup.sample_rate_hz));
+  sim::PlantAxes slave(plant_of(setup.slave_device, nullptr, setup.slave_environment), period);
+  slave.reset({setup.slave0_m, AxisVector::Zero(n)});
+  AxesLaws laws(setup.law, t_s, setup.round_trip_delay_samples, setup.master0_m, setup.slave0_m);
+  AxesSlaveOutcomeMeter meter(n, setup.position_scaling, setup.slave_planes);
+  AxesResimulation out;
+  out.axes = n;
+  out.slave_position_m.reserve(master.size() * static_cast<std::size_t>(n));
+  out.slave_command_N.reserve(master.size() * static_cast<std::size_t>(n));
+  control::CommandAxes cm;
+  control::CommandAxes cs;
+  for (std::size_t k = 0; k < master.size(); ++k) {
+    if (progress && k % 1000 == 0) {
+      progress(static_cast<double>(k) / static_cast<double>(master.size()));
+    }
+    if (master[k].position_m.size() != n) {
+      throw std::invalid_argument("resimulation: master cycle " + std::to_string(k) + " has " +
+                                  std::to_string(master[k].position_m.size()) + " axes, not " +
+                                  std::to_string(n));
+    }
+    const AxisVector xm = master[k].position_m;
+    const AxisVector xs = slave.state().position_m;
+    const AxisVector fe = -slave.output().environment_force_N;
+    laws.step(static_cast<long>(k), xm, xs, fe, cm, cs, master[k].coupled, master[k].clutched);
+    out.outcome.fault = out.outcome.fault || cs.flags.input_fault;
+    for (int i = 0; i < n; ++i) {
+      out.slave_position_m.push_back(xs(i));
+      out.slave_command_N.push_back(cs.force_N(i));
+    }
+    const control::PeerStateAxes& received = laws.received();
+    const bool following = received.valid && !received.clutched;
+    meter.add(xs, following ? std::optional<Eigen::VectorXd>(received.position_m) : std::nullopt);
+    (void)slave.step(cs.force_N);
+  }
+  if (progress) progress(1.0);
+  const bool fault = out.outcome.fault;
+  out.outcome = meter.finish(t_s);
+  out.outcome.fault = fault;
   return out;
 }
 

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <ostream>
@@ -11,9 +12,12 @@
 
 #include "common/config/axes_config.hpp"
 #include "common/config/axes_scene_loader.hpp"
+#include "supervisor/core/session_output.hpp"
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/json_output.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
+#include "supervisor/teleopctl/session_file.hpp"
+#include "supervisor/teleopctl/simulate_session_axes.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 
 namespace teleop::ctl {
@@ -171,15 +175,6 @@ void check_simulate_options(const SimulateOptions& o, int n) {
   if (o.seed) {
     throw UsageError(
         fmt::format("--seed: the {} simulator has ideal sensors and no random source", axes));
-  }
-  if (o.log_start_ns) {
-    throw UsageError(
-        fmt::format("--log-start-ns goes with a session file, one axis only ({})", axes));
-  }
-  if (o.out_path && o.out_path->ends_with(".mcap")) {
-    throw UsageError(fmt::format(
-        "--out {}: a session file is one axis only so far; with {} write --out FILE.csv",
-        *o.out_path, axes));
   }
 }
 
@@ -380,11 +375,16 @@ int run_simulate_axes(const config::LoadedConfig& cfg, const SimulateOptions& o,
     err << "teleopctl simulate: " << e.what() << "\n" << simulate_usage();
     return kExitUsage;
   }
+  // A session file's log times start at the wall clock of the run (before simulating).
+  const std::int64_t start_ns = o.log_start_ns ? *o.log_start_ns : supervisor::wall_clock_ns();
   const scene::AxesSceneSetup setup = config::to_axes_scene_setup(cfg);
+  const bool session = o.out_path && is_mcap_path(*o.out_path);
   scene::AxesSimulationResult r;
   {
     ProgressLine progress(err, "simulate", !o.json && stderr_is_terminal());
-    r = scene::simulate_axes(setup, [&](double f) { progress.update(f); });
+    const scene::Progress update = [&](double f) { progress.update(f); };
+    r = session ? simulate_axes_session(*o.out_path, cfg, setup, start_ns, update)
+                : scene::simulate_axes(setup, update);
   }
   const scene::AxesSimulationSummary& s = r.summary;
   const json j = simulation_json(cfg, setup, r);
@@ -393,7 +393,7 @@ int run_simulate_axes(const config::LoadedConfig& cfg, const SimulateOptions& o,
   } else {
     print_simulation(cfg, s, j, out);
   }
-  if (o.out_path) write_csv(*o.out_path, r);
+  if (o.out_path && !session) write_csv(*o.out_path, r);
   if (o.plot_path) write_plot(*o.plot_path, cfg.source_name, r);
   if (s.fault) return 5;
   return s.oscillation.detected || s.master_oscillation.detected ? 3 : 0;

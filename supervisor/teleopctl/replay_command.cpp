@@ -19,6 +19,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/config_loader.hpp"
 #include "common/config/resimulation_loader.hpp"
 #include "common/record/mcap_reader.hpp"
@@ -28,6 +29,7 @@
 #include "supervisor/teleopctl/cli_args.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
 #include "supervisor/teleopctl/replay_live.hpp"
+#include "supervisor/teleopctl/replay_resimulation.hpp"
 #include "supervisor/teleopctl/replay_summary.hpp"
 #include "supervisor/teleopctl/replay_supervision.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
@@ -616,60 +618,32 @@ void print_resimulation(const json& j, const ReplayArgs& a, const scene::SlaveOu
   if (resimulated.fault) out << "  the resimulated slave law latched a fault\n";
 }
 
-// The parts of --resimulate's progress line, in the time they take (measured on a 104 MB
-// session of 300 s: a pass over the file for the configuration 0.12 s, one reading a node's
-// cycles 0.30 s, the resimulation of its 300 000 cycles and the analyses 0.09 s).
-constexpr double kConfigPass = 0.12;
-constexpr double kCyclesPass = 0.30;
-constexpr double kResimulation = 0.09;
-
-// The number of axes of the first cycle either node recorded (1 without one).
-[[nodiscard]] int first_cycle_axes(const record::SessionReader& session) {
-  for (const bool master : {true, false}) {
-    for (const record::MessageView& m : session.messages_on(topic::telemetry(master))) {
-      const v1::Telemetry t = session.decode<v1::Telemetry>(m);
-      if (t.cycles_size() > 0) return telemetry::axes_of(t.cycles(0));
-    }
-  }
-  return 1;
-}
-
 int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::ostream& out,
                std::ostream& err) {
-  if (const int axes = first_cycle_axes(session); axes > 1) {
-    throw std::runtime_error(fmt::format(
-        "{}: the nodes recorded {} task-space axes: --resimulate runs one axis (the summary, "
-        "--csv and --plot read every axis)",
-        a.file, axes));
-  }
   // Erased before anything is printed (the output below comes after the analyses).
   std::optional<ProgressLine> progress;
   progress.emplace(err, "replay --resimulate", !a.json && stderr_is_terminal());
   const bool overrides = !a.overrides.empty();
   ProgressParts parts(*progress,
                       (overrides ? 2.0 : 1.0) * kConfigPass + 2.0 * kCyclesPass + kResimulation);
-  const std::optional<config::LoadedConfig> recorded =
-      record::recorded_config(session, {}, parts.bytes(kConfigPass));
-  if (!recorded) {
-    throw std::runtime_error(
-        fmt::format("{}: no /config channel: --resimulate needs the "
-                    "recorded configuration (channels: {})",
-                    a.file, session.channel_list()));
+  const ResimulationRequest request{a.file, a.overrides, a.json};
+  const ResimulationConfigs configs = resimulation_configs(session, request, parts);
+  // Several task-space axes (issue 18): the n-axis laws and plant.
+  if (config::configured_axes(configs.recorded.config) > 1) {
+    return resimulate_axes(session, request, configs, parts, progress, out);
   }
-  const config::LoadedConfig cfg =
-      overrides ? *record::recorded_config(session, a.overrides, parts.bytes(kConfigPass))
-                : *recorded;
+  const config::LoadedConfig& cfg = configs.config;
   const std::vector<record::RecordedCycle> master = session.cycles(true, parts.bytes(kCyclesPass));
   const std::vector<record::RecordedCycle> slave = session.cycles(false, parts.bytes(kCyclesPass));
   if (master.empty()) {
     throw std::runtime_error(fmt::format("{}: no master cycles to replay ({} is empty or missing)",
                                          a.file, topic::kMasterTelemetry));
   }
-  const TeleopParams params_before = config::to_teleop_params(*recorded);
+  const TeleopParams params_before = config::to_teleop_params(configs.recorded);
   const TeleopParams params = config::to_teleop_params(cfg);
   // The law and the slave device as the lockstep simulator (with a scene) or a node builds them.
   const std::optional<config::Resimulation> setup =
-      config::to_resimulation(cfg, *recorded, master.front().cycle.position_m,
+      config::to_resimulation(cfg, configs.recorded, master.front().cycle.position_m,
                               slave.empty() ? 0.0 : slave.front().cycle.position_m);
   if (!setup) {
     throw std::runtime_error(
@@ -696,13 +670,8 @@ int resimulate(const record::SessionReader& session, const ReplayArgs& a, std::o
   } else {
     print_resimulation(j, a, before, after, out);
   }
-  // The exit code follows the verdicts, as analyze's does: a fault, then oscillation seen or
-  // an unstable analysis (3), then an uncertain analysis (4).
-  if (after.fault) return 5;
-  const std::string verdict = j["resimulated"]["analysis"]["verdict"].get<std::string>();
-  if (verdict == "invalid") return kExitError;  // the model is not finite: never "ok"
-  if (after.oscillation.detected || verdict == "unstable") return 3;
-  return verdict == "uncertain" ? 4 : kExitOk;
+  return resimulation_exit_code(after.fault, after.oscillation.detected,
+                                j["resimulated"]["analysis"]["verdict"].get<std::string>());
 }
 
 int run(const ReplayArgs& a, std::ostream& out, std::ostream& err) {
@@ -778,7 +747,9 @@ std::string replay_usage() {
          "  --resimulate   the recorded master motion through the slave side of the law and the\n"
          "                 simulated slave, with the recorded /config plus --set overrides: the\n"
          "                 analyser's verdict and limits, slave tracking error, fixture\n"
-         "                 penetration and oscillation, next to what the recording shows\n"
+         "                 penetration and oscillation, next to what the recording shows;\n"
+         "                 several axes: both n-axis laws, and per axis how far the resimulated\n"
+         "                 slave's position and command are from the recorded ones\n"
          "  --plot F.svg   both nodes' positions (mm) and load-cell forces (N) against time, two\n"
          "                 panels (render a PNG with 'rsvg-convert -o F.png F.svg')\n"
          "Exit: 0 ok, 1 bad file (not MCAP, damaged: try --recover) or unknown channel, 2 usage;\n"

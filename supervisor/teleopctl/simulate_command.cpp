@@ -28,6 +28,7 @@
 #include "supervisor/teleopctl/analyze_command.hpp"
 #include "supervisor/teleopctl/axes_commands.hpp"
 #include "supervisor/teleopctl/progress_line.hpp"
+#include "supervisor/teleopctl/session_file.hpp"
 #include "supervisor/teleopctl/svg_plot.hpp"
 #include "teleop/v1/supervisor.pb.h"
 #include "teleop/v1/telemetry.pb.h"
@@ -61,13 +62,6 @@ void write_csv(const std::string& path, const scene::SimulationResult& r) {
 }
 
 // --- the session file (--out FILE.mcap) -------------------------------------------------------
-
-// Cycles per Telemetry message: a live node's 50 messages/s at 1 kHz.
-constexpr std::size_t kCyclesPerMessage = 20;
-
-[[nodiscard]] bool is_mcap_path(const std::string& path) {
-  return path.size() >= 5 && path.compare(path.size() - 5, 5, ".mcap") == 0;
-}
 
 // What the supervisor would publish at the start of this session (supervisor/core/report.hpp):
 // the analyser on the configured loop with the scene's round trip, which is the one the lockstep
@@ -108,68 +102,6 @@ constexpr std::size_t kCyclesPerMessage = 20;
 // from the sensed positions; the command it wrote, held over [kT, (k+1)T) (the master's
 // actuator is driven by -F_am); the peer state of that sample: the slave's at once, the
 // master's round_trip_delay_samples late.
-// The session file: a SessionSink over a synchronous McapWriter, one schema per type.
-class SessionFile final : public record::SessionSink {
- public:
-  explicit SessionFile(const std::string& path) : path_(path), writer_(path, writer_options()) {}
-  void record(std::string_view topic, const std::string& type, std::int64_t log_time_ns,
-              const std::string& bytes) override {
-    record_published(topic, type, log_time_ns, log_time_ns, bytes);
-  }
-  void record_published(std::string_view topic, const std::string& type, std::int64_t log_time_ns,
-                        std::int64_t publish_time_ns, const std::string& bytes) override {
-    check(writer_.write(channel(type, topic), static_cast<std::uint64_t>(log_time_ns),
-                        static_cast<std::uint64_t>(publish_time_ns), bytes));
-  }
-  void metadata(std::string_view name, const std::map<std::string, std::string>& values) override {
-    check(writer_.write_metadata(std::string(name), values));
-  }
-  void attachment(std::string_view name, std::string_view media_type, std::int64_t log_time_ns,
-                  const std::string& data) override {
-    record::AttachmentDef a;
-    a.log_time_ns = static_cast<std::uint64_t>(log_time_ns);
-    a.create_time_ns = a.log_time_ns;
-    a.name = std::string(name);
-    a.media_type = std::string(media_type);
-    a.data = data;
-    check(writer_.write_attachment(a));
-  }
-  [[nodiscard]] std::string file() const override { return path_; }
-  void close() { check(writer_.close()); }
-
- private:
-  void check(bool ok) const {
-    if (!ok) throw std::runtime_error(writer_.error());
-  }
-  [[nodiscard]] static record::WriterOptions writer_options() {
-    record::WriterOptions options;
-    options.library = record::session_library();
-    // Offline: chunks by size only, so the same scene and start give the same bytes.
-    options.max_chunk_age = std::chrono::nanoseconds::max();
-    return options;
-  }
-  std::uint16_t channel(const std::string& type, std::string_view topic) {
-    const auto known = channels_.find(std::string(topic));
-    if (known != channels_.end()) return known->second;
-    const google::protobuf::Descriptor* d =
-        google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName(type);
-    if (d == nullptr) throw std::invalid_argument("unknown message type " + type);
-    auto it = schemas_.find(d);
-    if (it == schemas_.end()) {
-      it = schemas_.emplace(d, writer_.add_schema(record::protobuf_schema(d))).first;
-    }
-    const std::uint16_t id =
-        writer_.add_channel(record::protobuf_channel(it->second, std::string(topic)));
-    channels_.emplace(std::string(topic), id);
-    return id;
-  }
-
-  std::string path_;
-  record::McapWriter writer_;
-  std::map<const google::protobuf::Descriptor*, std::uint16_t> schemas_{};
-  std::map<std::string, std::uint16_t> channels_{};
-};
-
 // The simulation's rows by column name.
 class SimRows {
  public:
@@ -190,46 +122,6 @@ class SimRows {
   std::size_t n_cols_;
 };
 
-// What both nodes' Telemetry messages carry besides their cycles: identity, the law in force,
-// loop and link statistics of a lockstep run.
-struct SimulatedTelemetry {
-  const TeleopParams& p;
-  std::uint64_t master_session{0};
-  std::uint64_t slave_session{0};
-  double period_s{0.0};
-  std::size_t delay{0};
-  std::int64_t round_trip_ns{0};
-
-  void start(v1::Telemetry& t, bool master) const {
-    t.Clear();
-    t.set_session_id(master ? master_session : slave_session);
-    t.set_role(master ? v1::MASTER : v1::SLAVE);
-    t.set_mode(v1::ENGAGED);
-    t.set_mode_reason("simulated (teleopctl simulate, lockstep)");
-    t.set_device("sim");
-    v1::ActiveParameters* a = t.mutable_active();
-    *a->mutable_gains() = supervisor::to_proto(p.gains);
-    a->set_master_fixture_stiffness_n_per_m(p.master_fixture.stiffness_N_per_m);
-    a->set_slave_fixture_stiffness_n_per_m(p.slave_fixture.stiffness_N_per_m);
-    a->set_ramp_progress(1.0);
-  }
-  void finish(v1::Telemetry& t, bool master, std::size_t cycles_so_far, std::int64_t now) const {
-    t.set_sent_time_ns(now);
-    v1::LoopStats* l = t.mutable_loop();
-    l->set_period_s(period_s);
-    l->set_cycles(cycles_so_far);
-    v1::LinkStats* k = t.mutable_link();
-    k->set_accepted(master ? cycles_so_far : (cycles_so_far > delay ? cycles_so_far - delay : 0));
-    k->set_round_trip_ns(round_trip_ns);
-    k->set_round_trip_p50_ns(round_trip_ns);
-    k->set_round_trip_p99_ns(round_trip_ns);
-    k->set_round_trip_samples(static_cast<std::int32_t>(delay));
-    k->set_one_way_latency_ns(round_trip_ns / 2);
-    k->set_peer_session_id(master ? slave_session : master_session);
-    k->set_peer_age_ns(master ? 0 : round_trip_ns);
-  }
-};
-
 // One node's cycle as the law saw it (the caller fills the node's own values).
 void set_cycle(v1::CycleRecord& c, std::uint64_t seq, std::int64_t time_ns, double position_m,
                double velocity_m_per_s, double force_N, double command_N) {
@@ -240,14 +132,6 @@ void set_cycle(v1::CycleRecord& c, std::uint64_t seq, std::int64_t time_ns, doub
   c.set_velocity_m_per_s(velocity_m_per_s);
   c.set_force_n(force_N);
   c.set_command_n(command_N);
-}
-
-// The file as read ("" when it cannot be read: the loaded configuration is attached then).
-std::string read_text_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return in ? text.str() : std::string();
 }
 
 void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg,
@@ -284,30 +168,16 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
   slave_velocity.reset(slave0);
 
   SessionFile file(path);
-  const auto put = [&file](std::string_view topic, std::int64_t log_time_ns,
-                           const google::protobuf::Message& m) {
-    file.record(topic, m.GetDescriptor()->full_name(), log_time_ns, m.SerializeAsString());
-  };
-  const v1::StabilityReport report = start_report(p);
-  put(record::topic::kConfig, start_ns, cfg.config);
-  put(record::topic::kStability, start_ns, report);
-  supervisor::record_session_start(file, cfg, read_text_file(cfg.source_name), report,
-                                   "teleopctl simulate", start_ns);
-
+  write_session_start(file, cfg, start_report(p), start_ns);
   const std::uint64_t seed = setup.seed;
-  const SimulatedTelemetry frame{p,
+  const SimulatedTelemetry frame{&p,
                                  0x5349'4D00'0000'0000ULL ^ (2 * seed + 1),
                                  0x5349'4D00'0000'0000ULL ^ (2 * seed + 2),
                                  period_s,
                                  delay,
                                  static_cast<std::int64_t>(delay) * period_ns};
-  v1::Telemetry mt;
-  v1::Telemetry st;
+  SimulatedNodes nodes(file, frame, start_ns, period_ns);
   for (std::size_t k = 0; k < rows; ++k) {
-    if (k % kCyclesPerMessage == 0) {
-      frame.start(mt, true);
-      frame.start(st, false);
-    }
     const std::uint64_t seq = k + 1;
     const std::int64_t time_ns = static_cast<std::int64_t>(k) * period_ns;
     const double xm = sim.at(k, c_xm);
@@ -318,7 +188,7 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
     const double xm_seen = have_master ? sim.at(k - delay, c_xm) : master0;
     const std::uint64_t master_seq_seen = have_master ? k - delay + 1 : 0;
 
-    v1::CycleRecord* c = mt.add_cycles();
+    v1::CycleRecord* c = &nodes.master_cycle(k);
     // 0.0 -: no negative zero in the CSV
     set_cycle(*c, seq, time_ns, xm, master_velocity.step(xm),
               k == 0 ? master_f0 : sim.at(k - 1, c_fh), 0.0 - sim.at(k, c_fam));
@@ -329,7 +199,7 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
     c->set_round_trip_ns(frame.round_trip_ns);
     c->set_master_sequence(seq);
 
-    c = st.add_cycles();
+    c = &nodes.slave_cycle();
     set_cycle(*c, seq, time_ns, xs, slave_velocity.step(xs),
               k == 0 ? slave_f0 : sim.at(k - 1, c_fe), sim.at(k, c_fas));
     c->set_peer_sequence(master_seq_seen);
@@ -338,16 +208,7 @@ void write_session_mcap(const std::string& path, const config::LoadedConfig& cfg
     c->set_coupling_weight(1.0);
     c->set_round_trip_ns(frame.round_trip_ns);
     c->set_master_sequence(master_seq_seen);
-
-    if ((k + 1) % kCyclesPerMessage == 0 || k + 1 == rows) {
-      const std::int64_t now = time_ns + period_ns;
-      frame.finish(mt, true, k + 1, now);
-      frame.finish(st, false, k + 1, now);
-      put(record::topic::kMasterTelemetry, start_ns + now, mt);
-      put(record::topic::kSlaveTelemetry, start_ns + now, st);
-      supervisor::record_cycles(file, true, mt, start_ns + now);
-      supervisor::record_cycles(file, false, st, start_ns + now);
-    }
+    nodes.done(k, k + 1 == rows);
   }
   file.close();
 }
@@ -452,7 +313,8 @@ std::string simulate_usage() {
          "cycle, /supervisor/stability, metadata, the scene as an attachment), for 'teleopctl\n"
          "replay', Foxglove or PlotJuggler. Its log times are the wall clock when the run began\n"
          "plus simulated time; --log-start-ns N starts them at N instead (0: simulated time, and\n"
-         "the same bytes for the same scene).\n";
+         "the same bytes for the same scene). With axes > 1 the session's cycles carry every axis\n"
+         "(docs/simulate.md \"Several axes from the command line\").\n";
 }
 
 SimulateOptions parse_simulate_args(const std::vector<std::string>& args) {

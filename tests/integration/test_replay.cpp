@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -26,6 +27,7 @@
 #include <regex>
 #include <sstream>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 #include <zmq.hpp>
@@ -1169,15 +1171,219 @@ TEST(ReplayAxes, ARefusedRecordIsCountedOrNamedNeverACrash) {
   }
 }
 
-// --resimulate runs one axis: refused by name, exit 1, before any work.
-TEST(ReplayAxes, ResimulateRefusesSeveralAxesSayingSo) {
+// --resimulate needs the recorded configuration: a session without /config is refused by name,
+// exit 1, before any work.
+TEST(ReplayAxes, ResimulateWithoutTheRecordedConfigurationSaysSo) {
   const TempDir dir;
   const std::string file = write_three_axis_session(dir);
   const SplitResult r = run(dir, "replay " + file + " --resimulate");
   EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
-  EXPECT_NE(r.err.find(file + ": the nodes recorded 3 task-space axes: --resimulate runs one axis"),
+  EXPECT_NE(
+      r.err.find(file + ": no /config channel: --resimulate needs the recorded configuration"),
+      std::string::npos)
+      << r.err;
+}
+
+// The three-axis scene (examples/scenes/cartesian3_planes.textproto) as a session file.
+std::string simulate_three_axis_mcap(const TempDir& dir, const std::string& extra = "") {
+  return simulate_mcap(dir, scene("cartesian3_planes.textproto"), extra, "cartesian3.mcap");
+}
+
+// `src` copied to `dst` message by message (log times, topics and types kept), each Telemetry
+// message of `topic` passed through `edit` first.
+void rewrite_session(const std::string& src, const std::string& dst, std::string_view topic,
+                     const std::function<void(teleop::v1::Telemetry&)>& edit) {
+  const teleop::record::McapReader reader = teleop::record::McapReader::open(src);
+  const std::unique_ptr<teleop::record::SessionSink> sink =
+      teleop::record::make_session_recorder_at(dst);
+  reader.for_each_message(teleop::record::Order::kLogTime,
+                          [&](const teleop::record::MessageView& m) {
+                            std::string bytes(m.data);
+                            if (m.channel->topic == topic) {
+                              teleop::v1::Telemetry t;
+                              ASSERT_TRUE(t.ParseFromString(bytes));
+                              edit(t);
+                              bytes = t.SerializeAsString();
+                            }
+                            sink->record(m.channel->topic, m.schema->name,
+                                         static_cast<std::int64_t>(m.log_time_ns), bytes);
+                          });
+}
+
+// The nodes' own law on the same plant with the same inputs: resimulating what simulate wrote
+// gives the recorded slave bit for bit on every axis (deviation exactly 0), and the same measures.
+TEST(ReplayAxes, ResimulatingASimulatedSessionDeviatesByNothingOnAnyAxis) {
+  const TempDir dir;
+  const std::string file = simulate_three_axis_mcap(dir, "--duration 2");
+  const SplitResult r = run(dir, "replay " + file + " --resimulate --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const json j = json::parse(r.out);
+  EXPECT_EQ(j["axes"].get<int>(), 3);
+  EXPECT_EQ(j["master_cycles"].get<int>(), 2000);  // 2 s at 1 kHz
+  const json& d = j["deviation"];
+  EXPECT_EQ(d["cycles_compared"].get<int>(), 2000);
+  ASSERT_EQ(d["per_axis"].size(), 3U);
+  for (const json& axis : d["per_axis"]) {
+    EXPECT_EQ(axis["max_abs_position_m"].get<double>(), 0.0) << axis;
+    EXPECT_EQ(axis["rms_position_m"].get<double>(), 0.0) << axis;
+    EXPECT_EQ(axis["max_abs_command_N"].get<double>(), 0.0) << axis;
+  }
+  EXPECT_EQ(j["recorded"]["outcome"], j["resimulated"]["outcome"]);
+  EXPECT_EQ(j["resimulated"]["analysis"]["verdict"], "stable");
+  // The slave was pushed into its planes: the measure is not of a slave at rest.
+  EXPECT_GT(j["recorded"]["outcome"]["max_penetration_slave_m"].get<double>(), 5e-3);
+  const SplitResult text = run(dir, "replay " + file + " --resimulate");
+  ASSERT_EQ(text.exit_code, 0) << text.err;
+  EXPECT_NE(text.out.find("axis 2: position up to 0 mm"), std::string::npos) << text.out;
+}
+
+// The record's slave moved by d = 0.25 mm on axis 1 from cycle 1001 on: the resimulation, which
+// reads only the master's motion, differs from the record by exactly d there and nowhere else
+// (rms d sqrt(1000 / 2000)).
+TEST(ReplayAxes, AShiftedAxisInTheRecordShowsExactlyThatShiftOnThatAxisOnly) {
+  const TempDir dir;
+  const std::string file = simulate_three_axis_mcap(dir, "--duration 2");
+  const std::string shifted = dir.file("shifted.mcap");
+  constexpr double kShift_m = 0.25e-3;
+  rewrite_session(file, shifted, "/slave/telemetry", [](teleop::v1::Telemetry& t) {
+    for (teleop::v1::CycleRecord& c : *t.mutable_cycles()) {
+      if (c.sequence() > 1000) c.set_positions_m(1, c.positions_m(1) + kShift_m);
+    }
+  });
+  const SplitResult r = run(dir, "replay " + shifted + " --resimulate --json");
+  ASSERT_EQ(r.exit_code, 0) << r.out << r.err;
+  const json d = json::parse(r.out)["deviation"];
+  EXPECT_EQ(d["cycles_compared"].get<int>(), 2000);
+  for (int i : {0, 2}) {
+    EXPECT_EQ(d["per_axis"][static_cast<std::size_t>(i)]["max_abs_position_m"].get<double>(), 0.0);
+    EXPECT_EQ(d["per_axis"][static_cast<std::size_t>(i)]["rms_position_m"].get<double>(), 0.0);
+  }
+  const json& a1 = d["per_axis"][1];
+  EXPECT_NEAR(a1["max_abs_position_m"].get<double>(), kShift_m, 1e-15);
+  EXPECT_NEAR(a1["rms_position_m"].get<double>(), kShift_m * std::sqrt(0.5), 1e-15);
+  EXPECT_GT(a1["at_sequence"].get<int>(), 1000);
+  EXPECT_EQ(a1["max_abs_command_N"].get<double>(), 0.0);  // the slave's commands are untouched
+  EXPECT_NEAR(d["max_abs_position_m"].get<double>(), kShift_m, 1e-15);
+}
+
+// The statics in the written session, solved by hand as test_teleopctl_axes.cpp does: the
+// planes' normals (0, 0, -1) and (1, 1, 0)/sqrt 2 and the tangent (1, -1, 0)/sqrt 2 are
+// orthogonal and every spring isotropic, so along a normal n (push F = 20 n.d,
+// d = (1, 1, -1)/sqrt 3; hand k_h = 70, coupling k_c = 600, plane K at p):
+//   (k_h + k_c) m - k_c s = F,   -k_c m + (k_c + K) s = K p.
+// The master's load cell reads the hand's force F - k_h m, its command is minus that (F_am
+// balances the hand at rest); the slave (no environment) reads 0 and commands 0. The summary
+// and the CSV read every axis of both nodes.
+TEST(ReplayAxes, TheWrittenSessionHoldsTheHandSolvedStatics) {
+  const TempDir dir;
+  const std::string file = simulate_three_axis_mcap(dir);  // the scene's 5 s
+  const SplitResult summary = run(dir, "replay " + file + " --json");
+  ASSERT_EQ(summary.exit_code, 0) << summary.err;
+  const json js = json::parse(summary.out);
+  for (const char* side : {"master", "slave"}) {
+    EXPECT_EQ(js["nodes"][side]["axes"].get<int>(), 3) << side;
+    EXPECT_EQ(js["nodes"][side]["cycles"].get<int>(), 5000) << side;
+    EXPECT_EQ(js["nodes"][side]["refused_records"].get<int>(), 0) << side;
+  }
+  const SplitResult r = run(dir, "replay " + file + " --csv");
+  ASSERT_EQ(r.exit_code, 0) << r.err;
+  const Csv csv = parse_csv(r.out);
+  ASSERT_EQ(csv.rows.size(), 10000U);
+  const std::size_t m = 4999;  // the master's last cycle, then the slave's
+  const std::size_t s = 9999;
+  ASSERT_EQ(csv.rows[s][csv.col("node")], "slave");
+  const auto v = [&](std::size_t row, const char* field) {
+    std::array<double, 3> x{};
+    for (int i = 0; i < 3; ++i)
+      x[static_cast<std::size_t>(i)] = csv.num(row, std::string(field) + "_" + std::to_string(i));
+    return x;
+  };
+  const auto along_floor = [](const std::array<double, 3>& x) { return -x[2]; };
+  const auto along_wall = [](const std::array<double, 3>& x) {
+    return (x[0] + x[1]) / std::sqrt(2.0);
+  };
+  const auto along_tangent = [](const std::array<double, 3>& x) {
+    return (x[0] - x[1]) / std::sqrt(2.0);
+  };
+  const double kh = 70.0;
+  const double kc = 600.0;
+  const auto solve = [&](double f, double k, double p) {
+    const double det = (kh + kc) * (kc + k) - kc * kc;
+    return std::pair{(f * (kc + k) + kc * k * p) / det, ((kh + kc) * k * p + kc * f) / det};
+  };
+  const double f_floor = 20.0 / std::sqrt(3.0);
+  const double f_wall = 20.0 * 2.0 / std::sqrt(6.0);
+  const auto [m_floor, s_floor] = solve(f_floor, 1500.0, 0.01);
+  const auto [m_wall, s_wall] = solve(f_wall, 1000.0, 0.02);
+  const std::array<double, 3> xm = v(m, "position_m");
+  const std::array<double, 3> xs = v(s, "position_m");
+  EXPECT_NEAR(along_floor(xs) - 0.01, 6.2e-3, 0.05e-3);  // the scene's comment: 6.2 mm
+  EXPECT_NEAR(along_wall(xs) - 0.02, 12.6e-3, 0.05e-3);  // and 12.6 mm
+  EXPECT_NEAR(along_floor(xs), s_floor, 1e-6);
+  EXPECT_NEAR(along_wall(xs), s_wall, 1e-6);
+  EXPECT_NEAR(along_floor(xm), m_floor, 1e-6);
+  EXPECT_NEAR(along_wall(xm), m_wall, 1e-6);
+  EXPECT_NEAR(along_tangent(xs), 0.0, 1e-6);
+  EXPECT_NEAR(along_tangent(xm), 0.0, 1e-6);
+  const std::array<double, 3> fm = v(m, "force_N");
+  EXPECT_NEAR(along_floor(fm), f_floor - kh * m_floor, 1e-3);
+  EXPECT_NEAR(along_wall(fm), f_wall - kh * m_wall, 1e-3);
+  const std::array<double, 3> um = v(m, "command_N");
+  EXPECT_NEAR(along_floor(um), -(f_floor - kh * m_floor), 1e-3);
+  EXPECT_NEAR(along_wall(um), -(f_wall - kh * m_wall), 1e-3);
+  for (int i = 0; i < 3; ++i) {
+    const std::string n = std::to_string(i);
+    EXPECT_EQ(csv.num(s, "force_N_" + n), 0.0) << i;
+    EXPECT_NEAR(csv.num(s, "command_N_" + n), 0.0, 1e-3) << i;
+    // Each node's peer: the master's slave of the same sample, the slave's master a round trip
+    // earlier (at rest: the same position).
+    EXPECT_EQ(csv.num(m, "peer_position_m_" + n), xs[static_cast<std::size_t>(i)]) << i;
+    EXPECT_NEAR(csv.num(s, "peer_position_m_" + n), xm[static_cast<std::size_t>(i)], 1e-9) << i;
+  }
+  // The slave law's deepest plane: the wall (12.6 mm in, the floor 6.2 mm).
+  EXPECT_NEAR(csv.num(s, "fixture_penetration_m"), along_wall(xs) - 0.02, 1e-12);
+}
+
+// Hostile sessions, never a crash: a slave cycle of 2 axes in a 3-axis session, and a master
+// cycle whose positions list is one short, are refused naming the file, topic and sequence.
+TEST(ReplayAxes, ResimulateRefusesWrongAxisCountsAndTruncatedListsByName) {
+  const TempDir dir;
+  const std::string file = simulate_three_axis_mcap(dir, "--duration 2");
+  const std::string two = dir.file("two_axes.mcap");
+  rewrite_session(file, two, "/slave/telemetry", [](teleop::v1::Telemetry& t) {
+    for (teleop::v1::CycleRecord& c : *t.mutable_cycles()) {
+      if (c.sequence() != 777) continue;
+      c.set_axes(2);
+      for (auto* list :
+           {c.mutable_positions_m(), c.mutable_velocities_m_per_s(), c.mutable_forces_n(),
+            c.mutable_commands_n(), c.mutable_peer_positions_m()}) {
+        list->RemoveLast();
+      }
+    }
+  });
+  SplitResult r = run(dir, "replay " + two + " --resimulate");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find(two + ": /slave/telemetry cycle 777: 2 task-space axes, the recorded "
+                             "configuration 3"),
             std::string::npos)
       << r.err;
+  const std::string cut = dir.file("cut.mcap");
+  rewrite_session(file, cut, "/master/telemetry", [](teleop::v1::Telemetry& t) {
+    for (teleop::v1::CycleRecord& c : *t.mutable_cycles()) {
+      if (c.sequence() == 1235) c.mutable_positions_m()->RemoveLast();
+    }
+  });
+  r = run(dir, "replay " + cut + " --resimulate --json");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find(cut + ": /master/telemetry cycle 1235 (log time "), std::string::npos)
+      << r.err;
+  // A session with no cycles at all on the master's channel.
+  const std::string empty = dir.file("empty.mcap");
+  rewrite_session(file, empty, "/master/telemetry",
+                  [](teleop::v1::Telemetry& t) { t.clear_cycles(); });
+  r = run(dir, "replay " + empty + " --resimulate");
+  EXPECT_EQ(r.exit_code, 1) << r.out << r.err;
+  EXPECT_NE(r.err.find(empty + ": no master cycles to replay"), std::string::npos) << r.err;
 }
 
 // The plot: one position and one force trace per axis and node (6 each), labelled by axis.
