@@ -17,6 +17,7 @@ void SupervisorCore::tick(std::int64_t now_ns) {
   now_ns_ = now_ns;
   if (opts_.replay) return;  // a replay's checks were the live supervisor's, recorded
   excuse_own_stall();
+  if (axes_) finish_axes_change();  // an n-axis change analysed beside the loop
   if (now_ns < next_check_ns_) return;
   next_check_ns_ += kCheckPeriodNs;
   check_live();
