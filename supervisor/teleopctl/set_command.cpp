@@ -162,6 +162,11 @@ v1::ParameterChangeRequest make_change_request(
   bool any_gain = false;
   v1::Gains g = gains_in_force;
   for (const auto& [path, value] : settings) {
+    if (axes_path(path)) {
+      throw UsageError("'" + path +
+                       "' names a plane or a gain element of several axes; this teleoperator "
+                       "has one axis");
+    }
     if (path == "master.fixture.stiffness_N_per_m") c.set_master_fixture_stiffness_n_per_m(value);
     if (path == "slave.fixture.stiffness_N_per_m") c.set_slave_fixture_stiffness_n_per_m(value);
     if (path.rfind("gains.", 0) == 0) {
