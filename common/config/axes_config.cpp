@@ -490,4 +490,26 @@ TeleopAxesParams to_axes_params(const LoadedConfig& config) {
   return to_axes_config(config).teleop;
 }
 
+GainsAxes gains_axes_of(const v1::Gains& gains, int n, std::string& why) {
+  why.clear();
+  const LoadedConfig none{};  // no file: each line starts ": " (its origin, empty)
+  Problems problems(none);
+  GainsAxes out = read_gains(problems, gains, n);
+  try {
+    problems.throw_if_any();
+  } catch (const ConfigError& e) {
+    std::string text = e.what();
+    for (std::size_t at = 0; (at = text.find(": ", at)) != std::string::npos;) {
+      // Drop the empty origin at the start of each line.
+      if (at == 0 || text[at - 1] == '\n') {
+        text.erase(at, 2);
+      } else {
+        at += 2;
+      }
+    }
+    why = text;
+  }
+  return out;
+}
+
 }  // namespace teleop::config

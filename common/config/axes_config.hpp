@@ -62,4 +62,10 @@ struct AxesConfig {
 [[nodiscard]] AxesConfig to_axes_config(const LoadedConfig& config);
 [[nodiscard]] TeleopAxesParams to_axes_params(const LoadedConfig& config);
 
+// The gains of a live n-axis change (ParameterUpdate.gains) by the configuration's rules for
+// `gains` (each a scalar on every axis, its diagonal or its n x n matrix, symmetric positive
+// semidefinite, within the scalar's ceiling along every direction). Empty `why` when
+// acceptable, else one line per problem, each naming the field (gains.kps_matrix: ...).
+[[nodiscard]] GainsAxes gains_axes_of(const teleop::v1::Gains& gains, int n, std::string& why);
+
 }  // namespace teleop::config

@@ -1,5 +1,6 @@
 #include "common/config/parameter_space.hpp"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -9,7 +10,9 @@
 #include <string>
 #include <unordered_map>
 
+#include "common/config/axes_config.hpp"
 #include "common/core/defaults.hpp"
+#include "common/core/teleop_axes.hpp"
 
 namespace teleop::config {
 namespace {
@@ -182,6 +185,10 @@ const std::array kRules{
     NamedRule{"teleop.v1.ParameterUpdate.slave_fixture_position_m",
               symmetric(kMaxPosition, "m", kPositionWhy)},
     NamedRule{"teleop.v1.ParameterUpdate.ramp_ms", non_negative(kMaxMs, "ms", kMsWhy)},
+    NamedRule{"teleop.v1.ParameterUpdate.master_plane_stiffness_N_per_m",
+              non_negative(kMaxStiffness, "N/m", kStiffnessWhy)},
+    NamedRule{"teleop.v1.ParameterUpdate.slave_plane_stiffness_N_per_m",
+              non_negative(kMaxStiffness, "N/m", kStiffnessWhy)},
     // Several axes (issue 18): element by element here; sizes, symmetry, definiteness, unit
     // normals and the five-bar's home pose are axes_config.cpp's.
     NamedRule{"teleop.v1.SystemConfig.axes", at_least(1.0, 6.0, "", "1 to 6 task-space axes")},
@@ -402,6 +409,14 @@ std::string check_parameter_update(const teleop::v1::ParameterUpdate& update) {
   // A live change is one axis (the nodes run one): its gains are the scalars. A per-axis list or
   // a matrix would be dropped by the node without a word; refused, one line a field.
   std::string text = check_one_axis_gains(update.gains());
+  const auto n_axis_field = [&text](bool given, const std::string& line) {
+    if (!given) return;
+    if (!text.empty()) text += "; ";
+    text += line + ": an n-axis field; this is a one-axis change";
+  };
+  n_axis_field(update.axes() != 0, "axes (" + std::to_string(update.axes()) + ")");
+  n_axis_field(!update.master_plane_stiffness_n_per_m().empty(), "master_plane_stiffness_N_per_m");
+  n_axis_field(!update.slave_plane_stiffness_n_per_m().empty(), "slave_plane_stiffness_N_per_m");
   const std::vector<std::string> n_axis = n_axis_gain_fields(update.gains());
   for (const FieldProblem& p : check_fields(update)) {
     bool in_n_axis = false;
@@ -411,6 +426,57 @@ std::string check_parameter_update(const teleop::v1::ParameterUpdate& update) {
     if (!text.empty()) text += "; ";
     text += p.path + ": " + p.message;
   }
+  return text;
+}
+
+namespace {
+
+// "" when `given` values are one per plane of a side with `planes` planes.
+std::string plane_count(const google::protobuf::RepeatedField<double>& given, int planes,
+                        const char* field) {
+  if (given.size() == planes) return {};
+  return std::string(field) + ": one stiffness per plane of the side (" + std::to_string(planes) +
+         " in the configuration), got " + std::to_string(given.size());
+}
+
+}  // namespace
+
+std::string check_parameter_update_axes(const teleop::v1::ParameterUpdate& update, int axes,
+                                        int master_planes, int slave_planes) {
+  std::vector<std::string> lines;
+  if (update.axes() != static_cast<std::uint32_t>(axes)) {
+    lines.push_back("axes: an update for " + std::to_string(update.axes()) +
+                    " axes, this one has " + std::to_string(axes));
+  }
+  // The one-axis fixture fields have no meaning here (the planes carry the stiffnesses).
+  if (update.master_fixture_stiffness_n_per_m() != 0.0 ||
+      update.slave_fixture_stiffness_n_per_m() != 0.0 ||
+      update.master_fixture_position_m() != 0.0 || update.slave_fixture_position_m() != 0.0) {
+    lines.emplace_back(
+        "master_fixture_* / slave_fixture_*: one-axis fields; an n-axis update gives "
+        "master_plane_stiffness_N_per_m and slave_plane_stiffness_N_per_m");
+  }
+  for (const std::string& line : {plane_count(update.master_plane_stiffness_n_per_m(),
+                                              master_planes, "master_plane_stiffness_N_per_m"),
+                                  plane_count(update.slave_plane_stiffness_n_per_m(), slave_planes,
+                                              "slave_plane_stiffness_N_per_m")}) {
+    if (!line.empty()) lines.push_back(line);
+  }
+  // One line a field (a hostile list of thousands of NaNs is one line, not thousands).
+  std::vector<std::string> named;
+  for (const FieldProblem& p : check_fields(update)) {
+    const std::string field = p.path.substr(0, p.path.find('['));
+    if (std::find(named.begin(), named.end(), field) != named.end()) continue;
+    named.push_back(field);
+    lines.push_back(p.path + ": " + p.message);
+  }
+  if (lines.empty() && axes >= 1 && axes <= kMaxAxes) {
+    std::string why;
+    (void)gains_axes_of(update.gains(), axes, why);
+    if (!why.empty()) lines.push_back(why);
+  }
+  std::string text;
+  for (const std::string& line : lines) text += (text.empty() ? "" : "; ") + line;
   return text;
 }
 

@@ -58,6 +58,16 @@ struct FieldProblem {
 // a RETUNE.
 [[nodiscard]] std::string check_parameter_update(const teleop::v1::ParameterUpdate& update);
 
+// The same for a teleoperator of `axes` > 1 task-space axes with these many fixture planes a
+// side (a RETUNE to an n-axis node, and the supervisor's before it sends one): the update's axes
+// must be `axes`; one stiffness per plane of each side, in [0, 1e7] N/m; the one-axis fixture
+// fields 0; the gains by the configuration's rules (config::gains_axes_of: scalar, diagonal or
+// n x n matrix, symmetric positive semidefinite); ramp_ms as above. "" when acceptable, else
+// one line per problem, each naming the field.
+[[nodiscard]] std::string check_parameter_update_axes(const teleop::v1::ParameterUpdate& update,
+                                                      int axes, int master_planes,
+                                                      int slave_planes);
+
 // "" when `gains` holds only the one-axis scalars, else one line per per-axis list or matrix
 // given, naming it: a live change is one axis (the nodes run one), and the supervisor and the
 // nodes refuse such fields rather than drop them.

@@ -55,6 +55,11 @@ class PlaneSet {
   [[nodiscard]] const Plane& plane(int i) const noexcept {
     return planes_[static_cast<std::size_t>(i)];
   }
+  // A guarded change's stiffness for plane i (0 <= i < size(), validated by the caller; normal
+  // and offset stay). RT-safe.
+  TELEOP_RT void set_stiffness(int i, double stiffness_N_per_m) noexcept {
+    planes_[static_cast<std::size_t>(i)].stiffness_N_per_m = stiffness_N_per_m;
+  }
 
   // Every plane's normal must have x.size() entries. RT-safe.
   TELEOP_RT [[nodiscard]] PlaneSetOutput evaluate(const AxisVector& x) const noexcept {

@@ -50,7 +50,43 @@ TELEOP_RT control::PeerStateAxes peer_axes(const transport::NodeStateRecord& r, 
   return p;
 }
 
+// The seven gain matrices in GainValuesAxes' order.
+constexpr std::array<control::AxisMatrix control::LawGainsAxes::*, kGainMatrices> kGainOrder{
+    &control::LawGainsAxes::kpm, &control::LawGainsAxes::kps, &control::LawGainsAxes::kdm,
+    &control::LawGainsAxes::kds, &control::LawGainsAxes::kvm, &control::LawGainsAxes::kvs,
+    &control::LawGainsAxes::kfm};
+
+// The stiffnesses of a side's planes.
+PlaneStiffnessesAxes stiffnesses(const control::PlaneSet& planes) noexcept {
+  PlaneStiffnessesAxes k{};
+  for (int i = 0; i < planes.size(); ++i) {
+    k[static_cast<std::size_t>(i)] = planes.plane(i).stiffness_N_per_m;
+  }
+  return k;
+}
+
 }  // namespace
+
+GainValuesAxes gain_values(const control::LawGainsAxes& gains, int n) noexcept {
+  GainValuesAxes out{};
+  for (std::size_t g = 0; g < kGainMatrices; ++g) {
+    const control::AxisMatrix& m = gains.*kGainOrder[g];
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) out[g][static_cast<std::size_t>(r * n + c)] = m(r, c);
+    }
+  }
+  return out;
+}
+
+void to_law_gains(const GainValuesAxes& values, int n, control::LawGainsAxes& out) noexcept {
+  for (std::size_t g = 0; g < kGainMatrices; ++g) {
+    control::AxisMatrix& m = out.*kGainOrder[g];
+    m = control::AxisMatrix::Zero(n, n);  // fixed capacity: no allocation
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) m(r, c) = values[g][static_cast<std::size_t>(r * n + c)];
+    }
+  }
+}
 
 // One cycle as the role's command needs it.
 struct SideCycleAxes {
@@ -151,6 +187,22 @@ class NodeCoreAxes::Side {
 
   [[nodiscard]] const control::PlaneSet& planes() const noexcept { return planes_; }
 
+  // The law from now on runs `active`'s gains and this side's plane stiffnesses.
+  TELEOP_RT void retune(const ActiveLawAxes& active) noexcept {
+    control::LawGainsAxes gains;
+    to_law_gains(active.gains, n_, gains);
+    const PlaneStiffnessesAxes& k =
+        is_master() ? active.master_planes_N_per_m : active.slave_planes_N_per_m;
+    for (int i = 0; i < planes_.size(); ++i) {
+      planes_.set_stiffness(i, k[static_cast<std::size_t>(i)]);
+    }
+    if (is_master()) {
+      master_->retune(gains, planes_);
+    } else {
+      slave_->retune(gains, planes_);
+    }
+  }
+
  private:
   TELEOP_RT static void note(const control::CommandAxes& out, std::uint32_t& flags,
                              unsigned& saturated, unsigned& rate_limited) noexcept {
@@ -230,6 +282,56 @@ NodeCoreAxes::NodeCoreAxes(const NodeAxesSettings& settings, device::HapticDevic
   own_m_ = Vec::Zero(axes());
   last_command_N_ = Vec::Zero(axes());
   safe_from_N_ = Vec::Zero(axes());
+  active_.axes = axes();
+  active_.master_planes = settings_.law.master_planes.size();
+  active_.slave_planes = settings_.law.slave_planes.size();
+  active_.gains = gain_values(settings_.law.gains, axes());
+  active_.master_planes_N_per_m = stiffnesses(settings_.law.master_planes);
+  active_.slave_planes_N_per_m = stiffnesses(settings_.law.slave_planes);
+  active_out_.write(active_);
+}
+
+// As NodeCore::apply_retune, on every gain-matrix element and plane stiffness.
+void NodeCoreAxes::apply_retune(std::chrono::nanoseconds now,
+                                std::uint64_t master_sequence) noexcept {
+  RetuneAxes incoming{};
+  if (retune_in_.read(incoming)) {
+    pending_ = incoming;
+    retune_pending_ = true;
+  }
+  if (retune_pending_ && master_sequence >= pending_.apply_at_master_sequence) {
+    retune_pending_ = false;
+    ramping_ = true;
+    ramp_from_ = active_;
+    ramp_start_ = now;
+    ramp_length_ = pending_.ramp;
+    ramp_to_ = pending_;  // a change posted while this one ramps waits for its own sequence
+    active_.change_id = pending_.id;
+    active_.applied_at_master_sequence = pending_.apply_at_master_sequence;
+  }
+  if (!ramping_) return;
+  const double length = static_cast<double>(ramp_length_.count());
+  const double w =
+      length <= 0.0
+          ? 1.0
+          : std::clamp(static_cast<double>((now - ramp_start_).count()) / length, 0.0, 1.0);
+  const auto lerp = [w](double a, double b) { return a + w * (b - a); };
+  const auto used = static_cast<std::size_t>(axes() * axes());
+  for (std::size_t g = 0; g < kGainMatrices; ++g) {
+    for (std::size_t i = 0; i < used; ++i) {
+      active_.gains[g][i] = lerp(ramp_from_.gains[g][i], ramp_to_.gains[g][i]);
+    }
+  }
+  for (std::size_t i = 0; i < active_.master_planes_N_per_m.size(); ++i) {
+    active_.master_planes_N_per_m[i] =
+        lerp(ramp_from_.master_planes_N_per_m[i], ramp_to_.master_planes_N_per_m[i]);
+    active_.slave_planes_N_per_m[i] =
+        lerp(ramp_from_.slave_planes_N_per_m[i], ramp_to_.slave_planes_N_per_m[i]);
+  }
+  active_.ramp_progress = w;
+  side_->retune(active_);
+  if (w >= 1.0) ramping_ = false;
+  active_out_.write(active_);
 }
 
 NodeCoreAxes::~NodeCoreAxes() = default;
@@ -260,7 +362,7 @@ const char* NodeCoreAxes::coupling_refusal() const noexcept {
   if (peer_.state.config_fingerprint != settings_.config_fingerprint) {
     return "arm and engage refused: configuration fingerprint differs from the peer's";
   }
-  if (peer_.state.parameter_change_id != 0) {
+  if (peer_.state.parameter_change_id != active_.change_id) {
     return "arm and engage refused: the peer runs another parameter change";
   }
   return nullptr;
@@ -310,6 +412,7 @@ void NodeCoreAxes::step(std::chrono::nanoseconds now, std::chrono::nanoseconds c
   }
   const std::uint64_t master_sequence =
       side_->master_sequence(sequence_, have_peer_, peer_.state.sequence);
+  apply_retune(now, master_sequence);
   std::uint32_t flags = sample.flags;
   unsigned saturated = 0;
   unsigned rate_limited = 0;
@@ -364,6 +467,7 @@ void NodeCoreAxes::step(std::chrono::nanoseconds now, std::chrono::nanoseconds c
   rec.rate_limited_axes = rate_limited;
   rec.round_trip_ns = round_trip_ns_;
   rec.master_sequence = master_sequence;
+  rec.parameter_change_id = active_.change_id;
   rec.alignment_error_m = gap_m;
   rec.fixture_penetration_m = penetration_m;
   if (timing != nullptr && timing->cycles() > 0) {
@@ -483,7 +587,8 @@ void NodeCoreAxes::publish_state(std::chrono::nanoseconds now, Mode mode, const 
   }
   state.fault_flags = flags;
   state.config_fingerprint = settings_.config_fingerprint;
-  state.parameter_change_id = 0;
+  state.parameter_change_id = active_.change_id;
+  active_change_id_.store(active_.change_id, std::memory_order_release);
   round_trip_.sent(sequence_, now);
   state_out_.write(state);
   published_.fetch_add(1, std::memory_order_release);

@@ -25,10 +25,11 @@
 // The node process (runtime/node_app.hpp) runs it for a configuration with axes > 1, with the
 // same threads as NodeCore: state_published, state_out, peer_in, commands, telemetry_out and
 // the loop statistics (stats_out, every NodeCore::kStatsEvery cycles) as NodeCore's.
-// Not yet here (docs/nodes.md "n task-space axes"): guarded parameter changes (there is no
-// post_retune: the node always runs the parameters it was built with, parameter change 0, and
-// refuses arm and engage while the peer reports another change; the node process refuses a
-// RETUNE).
+// Guarded parameter changes (docs/nodes.md "n task-space axes"): post_retune as NodeCore's --
+// the change waits for its master sequence, then every gain-matrix element and every plane's
+// stiffness ramps linearly from the value in force over the change's ramp (normals and offsets
+// stay); active_out carries what the law runs. Arm and engage are refused while the peer
+// reports another change than this node's.
 #pragma once
 
 #include <array>
@@ -69,6 +70,43 @@ struct NodeAxesSettings {
   std::string coupling_refusal{};
 };
 
+// A guarded change's gains as plain numbers, so that it crosses to the RT thread by copy: the
+// seven matrices kpm, kps, kdm, kds, kvm, kvs, kfm (kGainOrder), each row-major with n x n
+// entries used.
+inline constexpr std::size_t kGainMatrices = 7;
+using GainValuesAxes = std::array<std::array<double, kMaxAxes * kMaxAxes>, kGainMatrices>;
+// One stiffness per fixture plane of a side, in the configuration's plane order.
+using PlaneStiffnessesAxes = std::array<double, kMaxPlanesPerSide>;
+
+// The matrices of `gains` (n x n each) as plain numbers, and back (RT-safe: fixed capacity).
+[[nodiscard]] GainValuesAxes gain_values(const control::LawGainsAxes& gains, int n) noexcept;
+TELEOP_RT void to_law_gains(const GainValuesAxes& values, int n,
+                            control::LawGainsAxes& out) noexcept;
+
+// A guarded n-axis change (NodeCore's Retune with gain matrices and plane stiffnesses),
+// validated by the caller (config::check_parameter_update_axes).
+struct RetuneAxes {
+  std::uint64_t id{0};
+  GainValuesAxes gains{};
+  PlaneStiffnessesAxes master_planes_N_per_m{};
+  PlaneStiffnessesAxes slave_planes_N_per_m{};
+  std::uint64_t apply_at_master_sequence{0};
+  std::chrono::nanoseconds ramp{0};
+};
+
+// What the law runs now (ActiveLaw with n axes); the counts say which entries are used.
+struct ActiveLawAxes {
+  std::uint64_t change_id{0};
+  std::uint64_t applied_at_master_sequence{0};
+  int axes{0};
+  int master_planes{0};
+  int slave_planes{0};
+  GainValuesAxes gains{};
+  PlaneStiffnessesAxes master_planes_N_per_m{};
+  PlaneStiffnessesAxes slave_planes_N_per_m{};
+  double ramp_progress{1.0};
+};
+
 // One cycle for telemetry (CycleRecord with per-axis arrays, entries from `axes` on zero);
 // fixed size.
 struct CycleRecordAxes {
@@ -92,6 +130,7 @@ struct CycleRecordAxes {
   std::int64_t wakeup_latency_ns{0};
   std::int64_t round_trip_ns{0};
   std::uint64_t master_sequence{0};
+  std::uint64_t parameter_change_id{0};  // the guarded change the law runs (0: as built)
   // |alpha x_m - x_s| from both raw positions (0 before a peer state).
   double alignment_error_m{0.0};
   double fixture_penetration_m{0.0};  // the deepest of the own law's planes, else 0
@@ -129,15 +168,22 @@ class NodeCoreAxes {
   // the node's heartbeat).
   [[nodiscard]] std::atomic<std::uint32_t>& state_published() noexcept { return published_; }
   [[nodiscard]] rt::LatestValue<LoopSnapshot>& stats_out() noexcept { return stats_out_; }
+  // A guarded change, validated by the caller; the newest posted replaces one still waiting
+  // for its master sequence. Any one thread.
+  void post_retune(const RetuneAxes& r) noexcept { retune_in_.write(r); }
+  // What the law runs (written at construction and every cycle of a ramp).
+  [[nodiscard]] rt::LatestValue<ActiveLawAxes>& active_out() noexcept { return active_out_; }
   // The newest accepted peer state's fingerprint and parameter change (0: none yet), and this
-  // node's parameter change (always 0: no guarded changes with n > 1 yet). Any thread.
+  // node's parameter change. Any thread.
   [[nodiscard]] std::uint64_t peer_fingerprint() const noexcept {
     return peer_fingerprint_.load(std::memory_order_acquire);
   }
   [[nodiscard]] std::uint64_t peer_change_id() const noexcept {
     return peer_change_id_.load(std::memory_order_acquire);
   }
-  [[nodiscard]] std::uint64_t active_change_id() const noexcept { return 0; }
+  [[nodiscard]] std::uint64_t active_change_id() const noexcept {
+    return active_change_id_.load(std::memory_order_acquire);
+  }
   [[nodiscard]] rt::SpscQueue<CycleRecordAxes, kTelemetryCapacity>& telemetry_out() noexcept {
     return telemetry_out_;
   }
@@ -165,6 +211,7 @@ class NodeCoreAxes {
   using Vec = control::AxisVector;
 
   TELEOP_RT void receive_peer(std::chrono::nanoseconds now) noexcept;
+  TELEOP_RT void apply_retune(std::chrono::nanoseconds now, std::uint64_t master_sequence) noexcept;
   TELEOP_RT [[nodiscard]] Command next_command() noexcept;
   TELEOP_RT [[nodiscard]] CycleOutputs decide(std::chrono::nanoseconds now, Command command,
                                               std::int64_t peer_age_ns, double gap_m,
@@ -200,6 +247,9 @@ class NodeCoreAxes {
   rt::LatestValue<LoopSnapshot> stats_out_{};
   std::atomic<std::uint64_t> peer_fingerprint_{0};
   std::atomic<std::uint64_t> peer_change_id_{0};
+  std::atomic<std::uint64_t> active_change_id_{0};
+  rt::LatestValue<RetuneAxes> retune_in_{};
+  rt::LatestValue<ActiveLawAxes> active_out_{};
   rt::SpscQueue<CycleRecordAxes, kTelemetryCapacity> telemetry_out_{};
   std::atomic<Mode> mode_{Mode::kDisarmed};
   std::atomic<const char*> reason_{"start"};
@@ -220,6 +270,15 @@ class NodeCoreAxes {
   Vec own_m_{};  // this cycle's position (entry actions reset the law there)
   Vec last_command_N_{};
   Vec safe_from_N_{};
+  // Guarded changes (as NodeCore's).
+  bool retune_pending_{false};
+  RetuneAxes pending_{};
+  bool ramping_{false};
+  ActiveLawAxes active_{};
+  ActiveLawAxes ramp_from_{};
+  RetuneAxes ramp_to_{};
+  std::chrono::nanoseconds ramp_start_{0};
+  std::chrono::nanoseconds ramp_length_{0};
 };
 
 }  // namespace teleop::node

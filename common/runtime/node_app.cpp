@@ -20,6 +20,7 @@
 #include "common/device/sim_device.hpp"
 #include "common/rt/cpu_dma_latency.hpp"
 #include "common/runtime/command_authority.hpp"
+#include "common/runtime/node_retune.hpp"
 #include "common/telemetry/cycle_codec.hpp"
 #include "common/transport/socket_monitor.hpp"
 #include "common/transport/zap_handler.hpp"
@@ -91,26 +92,6 @@ std::function<void()> keep_running(const char* name, const std::atomic<bool>& ru
   };
 }
 
-// A parameter update as the RT core takes it; nullopt with the reason when a value is unusable
-// (the one parameter space: the rules the configuration's own fields obey).
-std::optional<node::Retune> to_retune(const v1::ParameterUpdate& u, std::string& why) {
-  why = config::check_parameter_update(u);
-  if (!why.empty()) return std::nullopt;
-  if (u.change_id() == 0) {
-    why = "change_id must be > 0";
-    return std::nullopt;
-  }
-  const v1::Gains& g = u.gains();
-  node::Retune r;
-  r.id = u.change_id();
-  r.gains = Gains{g.kpm(), g.kps(), g.kdm(), g.kds(), g.kvm(), g.kvs(), g.kfm()};
-  r.master_fixture = {u.master_fixture_stiffness_n_per_m(), u.master_fixture_position_m()};
-  r.slave_fixture = {u.slave_fixture_stiffness_n_per_m(), u.slave_fixture_position_m()};
-  r.apply_at_master_sequence = u.apply_at_master_sequence();
-  r.ramp = std::chrono::nanoseconds(static_cast<long long>(std::llround(u.ramp_ms() * 1e6)));
-  return r;
-}
-
 // docs/nodes.md "Before engage": a refused arm or engage, with both fingerprints (and both
 // parameter changes) named.
 template <class Core>
@@ -167,21 +148,6 @@ struct LinkCounters {
       rejected{};
   std::atomic<std::uint64_t> lost{0};
 };
-
-void fill_active(v1::ActiveParameters& a, const node::ActiveLaw& active) {
-  a.set_change_id(active.change_id);
-  a.set_applied_at_master_sequence(active.applied_at_master_sequence);
-  a.mutable_gains()->set_kpm(active.gains.kpm);
-  a.mutable_gains()->set_kps(active.gains.kps);
-  a.mutable_gains()->set_kdm(active.gains.kdm);
-  a.mutable_gains()->set_kds(active.gains.kds);
-  a.mutable_gains()->set_kvm(active.gains.kvm);
-  a.mutable_gains()->set_kvs(active.gains.kvs);
-  a.mutable_gains()->set_kfm(active.gains.kfm);
-  a.set_master_fixture_stiffness_n_per_m(active.master_fixture.stiffness_N_per_m);
-  a.set_slave_fixture_stiffness_n_per_m(active.slave_fixture.stiffness_N_per_m);
-  a.set_ramp_progress(active.ramp_progress);
-}
 
 void fill_loop_stats(v1::LoopStats& l, const node::LoopSnapshot& stats,
                      std::chrono::nanoseconds period) {
@@ -269,8 +235,9 @@ void refuse(v1::NodeCommandReply& reply, const std::string& message) {
 // A RETUNE: refused when its change number is not newer than the newest taken (a replayed or
 // reused one could bring back values that no longer hold: the supervisor lowered them since)
 // or a value is unusable; otherwise posted to the loop.
-void apply_retune(node::NodeCore& core, const v1::ParameterUpdate& update,
-                  std::uint64_t& newest_retune_id, v1::NodeCommandReply& reply) {
+template <class Core>
+void apply_retune(Core& core, const v1::ParameterUpdate& update, std::uint64_t& newest_retune_id,
+                  v1::NodeCommandReply& reply) {
   if (update.change_id() != 0 && update.change_id() <= newest_retune_id) {
     refuse(reply, "parameter update refused: change " + std::to_string(update.change_id()) +
                       " is not newer than change " + std::to_string(newest_retune_id) +
@@ -279,7 +246,7 @@ void apply_retune(node::NodeCore& core, const v1::ParameterUpdate& update,
     return;
   }
   std::string why;
-  const std::optional<node::Retune> r = to_retune(update, why);
+  const auto r = retune_of(core, update, why);
   if (!r) {
     refuse(reply, "parameter update refused: " + why);
   } else {
@@ -636,15 +603,7 @@ void NodeApp::answer_command(Core& core, const v1::NodeCommand& cmd, v1::NodeCom
   if (cmd.kind() == v1::NodeCommand::STATUS) {
     reply.set_ok(true);
   } else if (cmd.kind() == v1::NodeCommand::RETUNE) {
-    if constexpr (std::is_same_v<Core, node::NodeCore>) {
-      apply_retune(core, cmd.update(), m.newest_retune_id, reply);
-    } else {
-      refuse(reply,
-             "parameter update refused: guarded parameter changes are not supported for "
-             "n > 1 axes yet (this node has " +
-                 std::to_string(core.axes()) + " axes)");
-      spdlog::warn("RETUNE {}: {}", cmd.update().change_id(), reply.message());
-    }
+    apply_retune(core, cmd.update(), m.newest_retune_id, reply);
   } else if (cmd.kind() == v1::NodeCommand::FLIGHT_RECORD) {
     m.flight_request.store(true);
     reply.set_ok(true);
@@ -679,7 +638,9 @@ void NodeApp::publish_telemetry(Core& core) {
       std::chrono::nanoseconds(static_cast<long long>(1e9 / setup_.telemetry_rate_hz));
   auto next = std::chrono::steady_clock::now() + period;
   node::LoopSnapshot stats{};
-  [[maybe_unused]] node::ActiveLaw active{};  // one axis only
+  // What the law runs: ActiveLaw for one axis, ActiveLawAxes for several.
+  std::conditional_t<std::is_same_v<Core, node::NodeCore>, node::ActiveLaw, node::ActiveLawAxes>
+      active{};
   node::Mode last_mode = node::Mode::kDisarmed;
   v1::Telemetry t;
   FlightRecorder flight(setup_.settings.period);
@@ -703,13 +664,8 @@ void NodeApp::publish_telemetry(Core& core) {
       flight.keep(*c);
     }
     (void)core.stats_out().read(stats);
-    if constexpr (std::is_same_v<Core, node::NodeCore>) {
-      (void)core.active_out().read(active);
-      fill_active(*t.mutable_active(), active);
-    } else {
-      // n axes: the parameters built with (change 0), no ramp.
-      t.mutable_active()->set_ramp_progress(1.0);
-    }
+    (void)core.active_out().read(active);
+    fill_active(*t.mutable_active(), active);
     t.set_mode(to_proto(core.mode()));
     t.set_mode_reason(core.mode_reason());
     fill_configuration(t, core, setup_);

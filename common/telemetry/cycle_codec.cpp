@@ -28,6 +28,7 @@ void put_common(const Record& rec, v1::CycleRecord& out) {
   out.set_round_trip_ns(rec.round_trip_ns);
   out.set_master_sequence(rec.master_sequence);
   out.set_alignment_error_m(rec.alignment_error_m);
+  out.set_parameter_change_id(rec.parameter_change_id);
 }
 
 template <typename Record>
@@ -43,6 +44,7 @@ void take_common(const v1::CycleRecord& c, Record& r) noexcept {
   r.round_trip_ns = c.round_trip_ns();
   r.master_sequence = c.master_sequence();
   r.alignment_error_m = c.alignment_error_m();
+  r.parameter_change_id = c.parameter_change_id();
 }
 
 }  // namespace
@@ -54,7 +56,6 @@ void to_proto(const node::CycleRecord& rec, v1::CycleRecord& out) {
   out.set_force_n(rec.force_N);
   out.set_command_n(rec.command_N);
   out.set_peer_position_m(rec.peer_position_m);
-  out.set_parameter_change_id(rec.parameter_change_id);
 }
 
 node::CycleRecord from_proto(const v1::CycleRecord& c) noexcept {
@@ -65,7 +66,6 @@ node::CycleRecord from_proto(const v1::CycleRecord& c) noexcept {
   r.force_N = c.force_n();
   r.command_N = c.command_n();
   r.peer_position_m = c.peer_position_m();
-  r.parameter_change_id = c.parameter_change_id();
   return r;
 }
 

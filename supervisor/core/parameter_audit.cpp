@@ -12,41 +12,32 @@ namespace teleop::supervisor {
 
 namespace {
 
-constexpr std::size_t kFields = 9;
-constexpr std::array<const char*, kFields> kNames = {"gains.kpm",
-                                                     "gains.kps",
-                                                     "gains.kdm",
-                                                     "gains.kds",
-                                                     "gains.kvm",
-                                                     "gains.kvs",
-                                                     "gains.kfm",
-                                                     "master_fixture_stiffness_N_per_m",
-                                                     "slave_fixture_stiffness_N_per_m"};
+using Named = std::vector<std::pair<std::string, double>>;
 
-std::array<double, kFields> values_of(const ApprovedParameters& p) {
+Named values_of(const ApprovedParameters& p) {
+  if (p.axes > 0) return p.axes_values;
   const Gains& g = p.gains;
-  return {g.kpm,
-          g.kps,
-          g.kdm,
-          g.kds,
-          g.kvm,
-          g.kvs,
-          g.kfm,
-          p.master_fixture_N_per_m,
-          p.slave_fixture_N_per_m};
+  return {{"gains.kpm", g.kpm},
+          {"gains.kps", g.kps},
+          {"gains.kdm", g.kdm},
+          {"gains.kds", g.kds},
+          {"gains.kvm", g.kvm},
+          {"gains.kvs", g.kvs},
+          {"gains.kfm", g.kfm},
+          {"master_fixture_stiffness_N_per_m", p.master_fixture_N_per_m},
+          {"slave_fixture_stiffness_N_per_m", p.slave_fixture_N_per_m}};
 }
 
-std::array<double, kFields> values_of(const v1::ActiveParameters& a) {
+Named values_of(const v1::ActiveParameters& a) {
+  if (a.axes() > 0) {
+    return approved_axes(static_cast<int>(a.axes()), a.gains(), a.master_plane_stiffness_n_per_m(),
+                         a.slave_plane_stiffness_n_per_m())
+        .axes_values;
+  }
   const v1::Gains& g = a.gains();
-  return {g.kpm(),
-          g.kps(),
-          g.kdm(),
-          g.kds(),
-          g.kvm(),
-          g.kvs(),
-          g.kfm(),
-          a.master_fixture_stiffness_n_per_m(),
-          a.slave_fixture_stiffness_n_per_m()};
+  ApprovedParameters p{Gains{g.kpm(), g.kps(), g.kdm(), g.kds(), g.kvm(), g.kvs(), g.kfm()},
+                       a.master_fixture_stiffness_n_per_m(), a.slave_fixture_stiffness_n_per_m()};
+  return values_of(p);
 }
 
 // The node computes its values from the ones sent (a ramp's last step is exact: w = 1), so
@@ -55,9 +46,10 @@ bool same(double a, double b) {
   return std::abs(a - b) <= 1e-9 * std::max({1.0, std::abs(a), std::abs(b)});
 }
 
-bool same(const std::array<double, kFields>& a, const std::array<double, kFields>& b) {
-  for (std::size_t i = 0; i < kFields; ++i) {
-    if (!same(a[i], b[i])) return false;
+bool same(const Named& a, const Named& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i].first != b[i].first || !same(a[i].second, b[i].second)) return false;
   }
   return true;
 }
@@ -100,8 +92,21 @@ std::vector<ParameterMismatch> ParameterAudit::check(const v1::ActiveParameters&
         fmt::format("change {} was never approved by this supervisor (newest approved: {})", id,
                     newest())});
   }
-  const std::array<double, kFields> v = values_of(active);
+  const Named v = values_of(active);
   const double progress = active.ramp_progress();
+  // The values named as the approved ones (the same axes and planes): else nothing compares.
+  const Named first = values_of(approved_.begin()->second);
+  bool comparable = v.size() == first.size();
+  for (std::size_t i = 0; comparable && i < v.size(); ++i)
+    comparable = v[i].first == first[i].first;
+  if (!comparable) {
+    out.push_back(ParameterMismatch{
+        "axes", static_cast<double>(active.axes()),
+        static_cast<double>(approved_.begin()->second.axes), id,
+        fmt::format("{} values in force, {} approved (another number of axes or planes)", v.size(),
+                    first.size())});
+    return out;
+  }
   // NaN progress is neither settled nor ramping sensibly: judged as a ramp, whose bounds no
   // non-finite value meets.
   const bool settled = progress >= 1.0;
@@ -111,33 +116,69 @@ std::vector<ParameterMismatch> ParameterAudit::check(const v1::ActiveParameters&
     for (auto later = it; later != approved_.end(); ++later) {
       if (same(v, values_of(later->second))) return out;
     }
-    const std::array<double, kFields> want = values_of(it->second);
-    for (std::size_t i = 0; i < kFields; ++i) {
-      if (same(v[i], want[i])) continue;
-      out.push_back(ParameterMismatch{kNames[i], v[i], want[i], id,
+    const Named want = values_of(it->second);
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      if (same(v[i].second, want[i].second)) continue;
+      const std::string& name = v[i].first;
+      out.push_back(ParameterMismatch{name, v[i].second, want[i].second, id,
                                       fmt::format("{} {} in force under change {} (approved {})",
-                                                  kNames[i], v[i], id, want[i])});
+                                                  name, v[i].second, id, want[i].second)});
     }
     return out;
   }
   // Ramping (or an unknown change): each value within the range of approved values.
-  for (std::size_t i = 0; i < kFields; ++i) {
-    double lo = values_of(approved_.begin()->second)[i];
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    double lo = first[i].second;
     double hi = lo;
     for (const auto& [approved_id, p] : approved_) {
-      const double x = values_of(p)[i];
+      const double x = values_of(p)[i].second;
       lo = std::min(lo, x);
       hi = std::max(hi, x);
     }
-    const double x = v[i];
+    const double x = v[i].second;
     if (std::isfinite(x) && (x >= lo || same(x, lo)) && (x <= hi || same(x, hi))) continue;
     const double nearest = std::isfinite(x) && x < lo ? lo : hi;
+    const std::string& name = v[i].first;
     out.push_back(ParameterMismatch{
-        kNames[i], x, nearest, id,
-        fmt::format("{} {} in force (ramp {:.2f}) outside every approved value [{}, {}]", kNames[i],
-                    x, progress, lo, hi)});
+        name, x, nearest, id,
+        fmt::format("{} {} in force (ramp {:.2f}) outside every approved value [{}, {}]", name, x,
+                    progress, lo, hi)});
   }
   return out;
+}
+
+ApprovedParameters approved_axes(
+    int axes, const v1::Gains& gains,
+    const google::protobuf::RepeatedField<double>& master_planes_N_per_m,
+    const google::protobuf::RepeatedField<double>& slave_planes_N_per_m) {
+  ApprovedParameters p;
+  p.axes = axes;
+  const std::array<std::pair<const char*, const google::protobuf::RepeatedField<double>*>, 7>
+      matrices{{{"kpm", &gains.kpm_matrix()},
+                {"kps", &gains.kps_matrix()},
+                {"kdm", &gains.kdm_matrix()},
+                {"kds", &gains.kds_matrix()},
+                {"kvm", &gains.kvm_matrix()},
+                {"kvs", &gains.kvs_matrix()},
+                {"kfm", &gains.kfm_matrix()}}};
+  for (const auto& [name, values] : matrices) {
+    for (int r = 0; r < axes; ++r) {
+      for (int c = 0; c < axes; ++c) {
+        const int i = r * axes + c;
+        // A matrix shorter than n x n: its missing elements read NaN, which no approval meets.
+        const double x = i < values->size() ? values->Get(i) : std::nan("");
+        p.axes_values.emplace_back(fmt::format("gains.{}[{},{}]", name, r, c), x);
+      }
+    }
+  }
+  for (const auto& [side, planes] :
+       {std::pair{"master", &master_planes_N_per_m}, std::pair{"slave", &slave_planes_N_per_m}}) {
+    for (int i = 0; i < planes->size(); ++i) {
+      p.axes_values.emplace_back(fmt::format("{}.planes[{}].stiffness_N_per_m", side, i),
+                                 planes->Get(i));
+    }
+  }
+  return p;
 }
 
 std::string describe(const std::vector<ParameterMismatch>& m) {

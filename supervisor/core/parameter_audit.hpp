@@ -10,12 +10,14 @@
 // (ramp_progress < 1) each value only has to lie between approved values (the node ramps
 // linearly from the values in force, which were approved, to approved ones). Settled
 // (ramp_progress 1), the values must be those of the change in force, or of a later approved
-// change (a node takes a newer target into a ramp under way).
+// change (a node takes a newer target into a ramp under way). With several axes the same holds
+// for every gain-matrix element and every plane's stiffness (ActiveParameters.axes > 0).
 #pragma once
 
 #include <cstdint>
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/core/teleop_params.hpp"
@@ -27,10 +29,23 @@ struct ApprovedParameters {
   Gains gains{};
   double master_fixture_N_per_m{0.0};
   double slave_fixture_N_per_m{0.0};
+  // Several axes (axes > 1): every gain-matrix element and plane stiffness, named as the audit
+  // names what a node reports (approved_axes()); the one-axis fields above are then unused.
+  int axes{0};
+  std::vector<std::pair<std::string, double>> axes_values{};
 };
 
+// The approved values of an n-axis teleoperator: `gains` as its seven n x n matrices
+// (kpm_matrix ... kfm_matrix, row-major) and each side's plane stiffnesses, named
+// "gains.kps[0,1]", "slave.planes[1].stiffness_N_per_m", ...
+[[nodiscard]] ApprovedParameters approved_axes(
+    int axes, const v1::Gains& gains,
+    const google::protobuf::RepeatedField<double>& master_planes_N_per_m,
+    const google::protobuf::RepeatedField<double>& slave_planes_N_per_m);
+
 struct ParameterMismatch {
-  std::string field{};         // "change_id", "gains.kps", "slave_fixture_stiffness_N_per_m", ...
+  std::string field{};         // "change_id", "gains.kps", "slave_fixture_stiffness_N_per_m",
+                               // "gains.kps[0,0]", "slave.planes[1].stiffness_N_per_m", ...
   double in_force{0.0};        // as the node reports it
   double approved{0.0};        // what the supervisor approved for it (the change's, or the nearest
                                // approved bound during a ramp)

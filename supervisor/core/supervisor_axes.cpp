@@ -1,14 +1,20 @@
 // SupervisorCore with several task-space axes (supervisor_core.hpp; docs/architecture.md "The
 // supervisor with several axes"): the n-axis report, the monitors per axis and on the vector
-// port, the refusal of change requests, and the nodes' fingerprints against each other.
+// port, guarded changes of plane stiffnesses and gain elements, and the nodes' fingerprints
+// against each other.
 #include <fmt/core.h>
 #include <spdlog/spdlog.h>
 
 #include <array>
+#include <chrono>
+#include <cmath>
 #include <optional>
 #include <span>
+#include <utility>
+#include <vector>
 
 #include "common/config/control_fingerprint.hpp"
+#include "common/config/parameter_space.hpp"
 #include "common/telemetry/cycle_codec.hpp"
 #include "supervisor/core/supervisor_core.hpp"
 
@@ -139,8 +145,10 @@ void SupervisorCore::refuse_axes_change(const v1::ParameterChangeRequest& c,
   v1::ParameterChangeReply& refused = *reply.mutable_change();
   refused.set_accepted(false);
   std::string reason = fmt::format(
-      "refused: guarded parameter changes are not supported with {} axes yet (the nodes cannot "
-      "apply one for n > 1); nothing was sent to the nodes",
+      "refused: guarded parameter changes are not supported with {} axes yet in their one-axis "
+      "form (a fixture stiffness a side, scalar gains): name the plane or the gain element "
+      "(slave.planes[0].stiffness_N_per_m=..., gains.kps[0,0]=...); nothing was sent to the "
+      "nodes",
       axes_->params.axes);
   *refused.mutable_prediction() = report_;
   // A fixture stiffness asked for: what the n-axis guard would say, every plane of that side at
@@ -182,6 +190,239 @@ void SupervisorCore::refuse_axes_change(const v1::ParameterChangeRequest& c,
   rec.set_time_ns(now_ns_);
   change_decided(rec);
   spdlog::info("change request ({}): {}", c.requested_by(), refused.reason());
+}
+
+namespace {
+
+// The gain matrix `name` names (kpm ... kfm), or nullptr.
+Eigen::MatrixXd* gain_matrix(GainsAxes& g, const std::string& name) {
+  const std::array<std::pair<const char*, Eigen::MatrixXd*>, 7> all{{{"kpm", &g.kpm},
+                                                                     {"kps", &g.kps},
+                                                                     {"kdm", &g.kdm},
+                                                                     {"kds", &g.kds},
+                                                                     {"kvm", &g.kvm},
+                                                                     {"kvs", &g.kvs},
+                                                                     {"kfm", &g.kfm}}};
+  for (const auto& [n, m] : all) {
+    if (name == n) return m;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+TeleopAxesParams SupervisorCore::axes_in_force() const {
+  TeleopAxesParams p = axes_->params;
+  p.sample_rate_hz = live_.sample_rate_hz;
+  p.round_trip_delay_samples = live_.round_trip_samples;
+  return p;
+}
+
+std::string SupervisorCore::propose_axes(const v1::ParameterChangeRequest& c,
+                                         TeleopAxesParams& p) const {
+  if (c.has_gains() || c.has_master_fixture_stiffness_n_per_m() ||
+      c.has_slave_fixture_stiffness_n_per_m()) {
+    return "the one-axis fields (gains' scalars, a fixture stiffness a side) given with plane "
+           "stiffnesses or gain elements: give every value in the n-axis form";
+  }
+  for (const v1::PlaneStiffnessChange& s : c.plane_stiffness()) {
+    std::vector<PlaneFixtureParams>& planes = s.slave() ? p.slave_planes : p.master_planes;
+    const char* side = s.slave() ? "slave" : "master";
+    if (s.plane() >= planes.size()) {
+      return fmt::format("{}.planes[{}]: the {} has {} plane(s) (numbered from 0)", side, s.plane(),
+                         side, planes.size());
+    }
+    planes[s.plane()].stiffness_N_per_m = s.stiffness_n_per_m();
+  }
+  const auto n = static_cast<std::uint32_t>(p.axes);
+  for (const v1::GainElementChange& g : c.gain_element()) {
+    Eigen::MatrixXd* m = gain_matrix(p.gains, g.gain());
+    if (m == nullptr) {
+      return fmt::format("gains.{}: not a gain (kpm, kps, kdm, kds, kvm, kvs or kfm)", g.gain());
+    }
+    if (g.every_axis()) {
+      *m = g.value() * Eigen::MatrixXd::Identity(p.axes, p.axes);
+    } else if (g.row() >= n || g.column() >= n) {
+      return fmt::format("gains.{}[{},{}]: rows and columns are 0 to {} ({} axes)", g.gain(),
+                         g.row(), g.column(), n - 1, n);
+    } else {
+      // Both (row, column) and (column, row): a gain matrix stays symmetric.
+      (*m)(g.row(), g.column()) = g.value();
+      (*m)(g.column(), g.row()) = g.value();
+    }
+  }
+  return {};
+}
+
+v1::ParameterUpdate SupervisorCore::axes_update(const TeleopAxesParams& p, std::uint64_t id,
+                                                std::uint64_t at) const {
+  v1::ParameterUpdate u;
+  u.set_change_id(id);
+  u.set_axes(static_cast<std::uint32_t>(p.axes));
+  v1::Gains& g = *u.mutable_gains();
+  const std::array<std::pair<const Eigen::MatrixXd*, google::protobuf::RepeatedField<double>*>, 7>
+      matrices{{{&p.gains.kpm, g.mutable_kpm_matrix()},
+                {&p.gains.kps, g.mutable_kps_matrix()},
+                {&p.gains.kdm, g.mutable_kdm_matrix()},
+                {&p.gains.kds, g.mutable_kds_matrix()},
+                {&p.gains.kvm, g.mutable_kvm_matrix()},
+                {&p.gains.kvs, g.mutable_kvs_matrix()},
+                {&p.gains.kfm, g.mutable_kfm_matrix()}}};
+  for (const auto& [m, out] : matrices) {
+    for (int r = 0; r < p.axes; ++r) {
+      for (int c = 0; c < p.axes; ++c) out->Add((*m)(r, c));
+    }
+  }
+  for (const PlaneFixtureParams& plane : p.master_planes) {
+    u.add_master_plane_stiffness_n_per_m(plane.stiffness_N_per_m);
+  }
+  for (const PlaneFixtureParams& plane : p.slave_planes) {
+    u.add_slave_plane_stiffness_n_per_m(plane.stiffness_N_per_m);
+  }
+  u.set_apply_at_master_sequence(at);
+  u.set_ramp_ms(change_ramp_ms_);
+  return u;
+}
+
+v1::SystemConfig SupervisorCore::axes_config_in_force() const {
+  v1::SystemConfig c = axes_->source.config;
+  if (change_id_ == 0) return c;
+  const v1::ParameterUpdate u = axes_update(axes_->params, 0, 0);
+  *c.mutable_gains() = u.gains();  // the seven matrices
+  for (const auto& [side, values] :
+       {std::pair{c.mutable_master(), &u.master_plane_stiffness_n_per_m()},
+        std::pair{c.mutable_slave(), &u.slave_plane_stiffness_n_per_m()}}) {
+    v1::Fixture& f = *side->mutable_fixture();
+    for (int i = 0; i < f.plane_size() && i < values->size(); ++i) {
+      f.mutable_plane(i)->set_stiffness_n_per_m(values->Get(i));
+    }
+  }
+  return c;
+}
+
+void SupervisorCore::axes_change_decided(const v1::ParameterChangeRequest& c,
+                                         const v1::ParameterChangeReply& reply) {
+  if (!reply.pending()) last_axes_change_ = reply;
+  v1::ParameterChangeRecord rec;
+  *rec.mutable_request() = c;
+  *rec.mutable_reply() = reply;
+  rec.set_time_ns(now_ns_);
+  change_decided(rec);
+  spdlog::info("change request {} ({}): {}", reply.request_id(), c.requested_by(), reply.reason());
+}
+
+// Checked here (the field named), analysed beside the loop: the reply says pending.
+void SupervisorCore::request_axes_change(const v1::ParameterChangeRequest& c,
+                                         v1::SupervisorReply& reply) {
+  v1::ParameterChangeReply& r = *reply.mutable_change();
+  r.set_request_id(++axes_requests_);
+  const TeleopAxesParams current = axes_in_force();
+  TeleopAxesParams proposed = current;
+  std::string why;
+  if (axes_change_) {
+    why = fmt::format("change request {} is still being assessed; ask again once it is decided",
+                      axes_change_->request_id);
+  } else {
+    why = propose_axes(c, proposed);
+  }
+  if (why.empty()) {
+    // The one parameter space: what the nodes will check, checked before anything is analysed.
+    why = config::check_parameter_update_axes(axes_update(proposed, 1, 0), proposed.axes,
+                                              static_cast<int>(proposed.master_planes.size()),
+                                              static_cast<int>(proposed.slave_planes.size()));
+  }
+  if (!why.empty()) {
+    r.set_accepted(false);
+    r.set_reason("refused: " + why);
+    *r.mutable_prediction() = report_;
+    axes_change_decided(c, r);
+    return;
+  }
+  axes_change_ =
+      AxesChange{c, r.request_id(), proposed, std::async(std::launch::async, [current, proposed] {
+                   return assess_axes_change(current, proposed);
+                 })};
+  r.set_pending(true);
+  r.set_reason(fmt::format(
+      "pending: change request {} is being analysed by the n-axis guard beside the supervisor's "
+      "loop; the decision follows in the supervisor's status (last_change)",
+      r.request_id()));
+  *r.mutable_prediction() = report_;
+  spdlog::info("change request {} ({}): analysing", r.request_id(), c.requested_by());
+}
+
+// From tick(): the analysis done, the change decided (and, accepted, sent to both nodes).
+void SupervisorCore::finish_axes_change() {
+  if (!axes_change_ ||
+      axes_change_->decision.wait_for(std::chrono::seconds(0)) != std::future_status::ready) {
+    return;
+  }
+  AxesChange change = std::move(*axes_change_);
+  axes_change_.reset();
+  AxesDecision d;
+  try {
+    d = change.decision.get();
+  } catch (const std::exception& e) {
+    d.accepted = false;
+    d.reason = std::string("refused: the guard's analysis failed: ") + e.what();
+  }
+  v1::ParameterChangeReply reply;
+  reply.set_request_id(change.request_id);
+  apply_axes_change(change, d, reply);
+  axes_change_decided(change.request, reply);
+}
+
+void SupervisorCore::apply_axes_change(const AxesChange& change, const AxesDecision& d,
+                                       v1::ParameterChangeReply& reply) {
+  const v1::ParameterChangeRequest& c = change.request;
+  const std::string who =
+      "requested by " + (c.requested_by().empty() ? std::string("operator") : c.requested_by());
+  *reply.mutable_prediction() =
+      to_report(d.prediction, change.proposed,
+                ReportContext{now_ns_, master_sequence(), measured_round_trip_ns_,
+                              "prediction: " + who, change_id_});
+  reply.set_reason(d.reason);
+  if (!d.accepted || c.dry_run()) {
+    reply.set_accepted(d.accepted && c.dry_run());
+    if (d.accepted) reply.set_reason(d.reason + " (dry run: not applied)");
+    return;
+  }
+  if (!master_.last || !slave_.last) {
+    reply.set_accepted(false);
+    reply.set_reason("refused: both nodes must be running to apply a change");
+    return;
+  }
+  const std::uint64_t id = std::max(change_id_, last_sent_change_id_) + 1;
+  const std::uint64_t at =
+      master_sequence() + static_cast<std::uint64_t>(std::lround(0.2 * params_.sample_rate_hz));
+  v1::NodeCommand cmd;
+  cmd.set_kind(v1::NodeCommand::RETUNE);
+  *cmd.mutable_update() = axes_update(change.proposed, id, at);
+  const v1::ParameterUpdate& u = cmd.update();
+  // Approved before it is sent, as for one axis.
+  audit_.approve(id,
+                 approved_axes(change.proposed.axes, u.gains(), u.master_plane_stiffness_n_per_m(),
+                               u.slave_plane_stiffness_n_per_m()));
+  last_sent_change_id_ = id;
+  if (const Delivery sent = send_to_both(cmd); !sent.refusal.empty()) {
+    reply.set_accepted(false);
+    reply.set_reason("refused: " + sent.refusal +
+                     (sent.master_took ? roll_back(id, sent.refusal) : ""));
+    return;
+  }
+  change_id_ = id;
+  axes_->params.gains = change.proposed.gains;
+  axes_->params.master_planes = change.proposed.master_planes;
+  axes_->params.slave_planes = change.proposed.slave_planes;
+  // The guard's prediction is the model in force now (no analysis again in the loop).
+  axes_->assessed.clear();
+  const std::pair<double, int> key{change.proposed.sample_rate_hz,
+                                   static_cast<int>(change.proposed.round_trip_delay_samples)};
+  axes_->assessed[key] = d.prediction;
+  reply.set_accepted(true);
+  reply.set_change_id(id);
+  reply.set_apply_at_master_sequence(at);
+  publish_axes_report("parameter change " + std::to_string(id) + ": " + who);
 }
 
 // Several axes: the supervisor computes no fingerprint of an n-axis file yet (its own is the

@@ -17,6 +17,7 @@ void SupervisorCore::tick(std::int64_t now_ns) {
   now_ns_ = now_ns;
   if (opts_.replay) return;  // a replay's checks were the live supervisor's, recorded
   excuse_own_stall();
+  if (axes_) finish_axes_change();  // an n-axis change analysed beside the loop
   if (now_ns < next_check_ns_) return;
   next_check_ns_ += kCheckPeriodNs;
   check_live();
@@ -158,8 +159,8 @@ void SupervisorCore::update_model() {
         {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
   publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
   if (axes_) {
-    // n > 1 nodes cannot retune yet: a model that misses its requirement cannot be met by
-    // lowering the planes, so the next step of the ladder is taken at once.
+    // The n-axis ladder does not lower planes (a guarded n-axis change is analysed beside the
+    // loop, seconds with a band): the next step of the ladder is taken at once.
     if (axes_->assessment.acceptable()) return;
     const auto coupled = [](const NodeView& v) {
       return v.mode == v1::ALIGNING || v.mode == v1::ENGAGED || v.mode == v1::CLUTCHED;
@@ -170,8 +171,8 @@ void SupervisorCore::update_model() {
         coupled(slave_) ? command(Side::kSlave, v1::NodeCommand::DISENGAGE) : std::nullopt;
     alarm(v1::Alarm::CRITICAL, "round_trip", "system",
           fmt::format("the {}-axis model with a {}-sample round trip at {:.1f} Hz no longer meets "
-                      "the requirement; n > 1 nodes cannot retune yet, so the planes cannot be "
-                      "lowered",
+                      "the requirement; the supervisor cannot retune n > 1 planes from its "
+                      "ladder yet, so the planes are not lowered",
                       axes_->params.axes, live_.round_trip_samples, live_.sample_rate_hz),
           {{"round_trip_p99", static_cast<double>(measured_round_trip_ns_) * 1e-6, "ms"},
            {"min_damping_ratio", axes_->assessment.min_damping_ratio, ""}},
@@ -276,11 +277,11 @@ void SupervisorCore::check_findings() {
         break;
       case EscalationAction::kLowerFixtures:
         if (axes_) {
-          // The one-axis ladder lowers the fixtures here by a RETUNE, which n > 1 nodes cannot
-          // apply yet: the next step instead.
+          // The one-axis ladder lowers the fixtures here by a RETUNE; the n-axis ladder does
+          // not lower planes yet: the next step instead.
           disengage_both(*n, f,
-                         fmt::format("lasted {:g} ms; n > 1 nodes cannot retune yet, so the "
-                                     "planes cannot be lowered",
+                         fmt::format("lasted {:g} ms; the supervisor cannot retune n > 1 "
+                                     "planes from its ladder yet, so the planes are not lowered",
                                      static_cast<double>(escalation_ns_) * 1e-6));
           break;
         }

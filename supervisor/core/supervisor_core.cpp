@@ -77,6 +77,11 @@ SupervisorCore::SupervisorCore(config::CompiledSystem system, std::optional<Axes
                                                         5.0, 0.05, params_.scaling.position);
   axes_ = std::move(axes);
   if (!axes_) return;
+  // Change 0: the file's n-axis values (gain matrices, plane stiffnesses), as the nodes report.
+  const v1::ParameterUpdate file = axes_update(axes_->params, 0, 0);
+  audit_ = ParameterAudit(approved_axes(axes_->params.axes, file.gains(),
+                                        file.master_plane_stiffness_n_per_m(),
+                                        file.slave_plane_stiffness_n_per_m()));
   for (NodeView* n : {&master_, &slave_}) {
     n->oscillation_axes = std::make_unique<OscillationMonitorAxes>(axes_->params.axes, period_s_,
                                                                    0.5, oscillation_threshold_m_);
@@ -132,8 +137,7 @@ void SupervisorCore::publish_report(const std::string& reason) {
 }
 
 v1::SystemConfig SupervisorCore::config_in_force() const {
-  // Several axes: no change is ever applied (refuse_axes_change), the file is in force.
-  if (axes_) return axes_->source.config;
+  if (axes_) return axes_config_in_force();
   v1::SystemConfig c = system_.source().config;
   *c.mutable_gains() = to_proto(live_.gains);
   // A side without a fixture keeps none while its stiffness in force is 0.
@@ -307,9 +311,18 @@ std::string SupervisorCore::roll_back(std::uint64_t refused_id, const std::strin
       master_sequence() + static_cast<std::uint64_t>(std::lround(0.2 * params_.sample_rate_hz));
   v1::NodeCommand c;
   c.set_kind(v1::NodeCommand::RETUNE);
-  *c.mutable_update() = make_update(live_, id, at);
-  audit_.approve(id, ApprovedParameters{live_.gains, live_.master_fixture_N_per_m,
-                                        live_.slave_fixture_N_per_m});
+  if (axes_) {
+    // Several axes: the values in force, gain matrices and planes.
+    *c.mutable_update() = axes_update(axes_->params, id, at);
+    const v1::ParameterUpdate& u = c.update();
+    audit_.approve(id,
+                   approved_axes(axes_->params.axes, u.gains(), u.master_plane_stiffness_n_per_m(),
+                                 u.slave_plane_stiffness_n_per_m()));
+  } else {
+    *c.mutable_update() = make_update(live_, id, at);
+    audit_.approve(id, ApprovedParameters{live_.gains, live_.master_fixture_N_per_m,
+                                          live_.slave_fixture_N_per_m});
+  }
   last_sent_change_id_ = id;
   const std::string again = send_to_both(c).refusal;
   if (again.empty()) {
@@ -337,7 +350,24 @@ std::string SupervisorCore::roll_back(std::uint64_t refused_id, const std::strin
 void SupervisorCore::on_change_request(const v1::ParameterChangeRequest& c,
                                        v1::SupervisorReply& reply) {
   if (axes_) {
-    refuse_axes_change(c, reply);
+    if (c.plane_stiffness_size() > 0 || c.gain_element_size() > 0) {
+      request_axes_change(c, reply);
+    } else {
+      refuse_axes_change(c, reply);
+    }
+    return;
+  }
+  if (c.plane_stiffness_size() > 0 || c.gain_element_size() > 0) {
+    v1::ParameterChangeReply& refused = *reply.mutable_change();
+    refused.set_accepted(false);
+    refused.set_reason(
+        "refused: plane stiffnesses and gain elements are n-axis fields; this teleoperator is one "
+        "axis (master.fixture.stiffness_N_per_m, gains.kps, ...)");
+    v1::ParameterChangeRecord rec;
+    *rec.mutable_request() = c;
+    *rec.mutable_reply() = refused;
+    rec.set_time_ns(now_ns_);
+    change_decided(rec);
     return;
   }
   // A per-axis list or a matrix would not survive from_proto (the scalars only): refused by
@@ -395,8 +425,9 @@ void SupervisorCore::on_telemetry(Side side, const v1::Telemetry& t, std::int64_
           fmt::format("went {} ({})", v1::NodeMode_Name(t.mode()), t.mode_reason()), {});
   }
   n.mode = t.mode();
-  // Several axes: no guarded change exists to adopt or audit (the nodes refuse every RETUNE
-  // for n > 1), and ActiveParameters carries the one-axis scalars only.
+  // Several axes: a change found in force at start is not adopted (a supervisor restarted on
+  // running n-axis nodes finds it unapproved); the audit covers every gain-matrix element and
+  // plane stiffness (ActiveParameters.axes).
   if (is_master && !heard_master_) {
     heard_master_ = true;
     if (!axes_) adopt_parameters_in_force(t);
@@ -404,7 +435,7 @@ void SupervisorCore::on_telemetry(Side side, const v1::Telemetry& t, std::int64_
   n.last = t;
   n.last_received_ns = now_ns;
   // After the master's first message: a change in force on running nodes is adopted then.
-  if (heard_master_ && !axes_) audit_parameters(n, t);
+  if (heard_master_) audit_parameters(n, t);
   for (const v1::CycleRecord& c : t.cycles()) {
     n.cycle_times.push_back(c.sample_time_ns());
     while (n.cycle_times.size() > 2000) n.cycle_times.pop_front();
@@ -671,6 +702,7 @@ void SupervisorCore::fill_status(v1::SupervisorStatus& s, bool may_command) cons
       axes_ ? axes_readings(slave_) : read_monitors(*slave_.oscillation, *slave_.passivity));
   s.set_client_may_command(may_command);
   fill_configuration_status(s);
+  if (last_axes_change_.request_id() != 0) *s.mutable_last_change() = last_axes_change_;
 }
 
 // docs/nodes.md "Before engage": the fingerprints, each node's own check, the experiment banner.

@@ -15,14 +15,17 @@
 //
 // Several task-space axes (the file's axes: n > 1; docs/architecture.md "The supervisor with
 // several axes"): the report is the n-axis analysis with every plane's limit, the monitors
-// watch every axis and the vector port f . v, and a change request is refused (the nodes cannot
-// apply a guarded change for n > 1 yet); where the one-axis ladder lowers a fixture, the n-axis
-// one disengages. One axis takes today's path exactly.
+// watch every axis and the vector port f . v, a change of plane stiffnesses or gain-matrix
+// elements is analysed beside the loop (assess_axes_change, per plane against its exact limit)
+// and, when admissible, sent to both nodes as an n-axis RETUNE, whose values in force are then
+// audited per element; where the one-axis ladder lowers a fixture, the n-axis one disengages.
+// One axis takes today's path exactly.
 #pragma once
 
 #include <cstdint>
 #include <deque>
 #include <functional>
+#include <future>
 #include <map>
 #include <memory>
 #include <optional>
@@ -259,6 +262,32 @@ class SupervisorCore {
   [[nodiscard]] Finding axes_finding(NodeView& n) const;
   [[nodiscard]] MonitorReadings axes_readings(const NodeView& n) const;
   void refuse_axes_change(const v1::ParameterChangeRequest& c, v1::SupervisorReply& reply);
+  // A guarded n-axis change (plane stiffnesses, gain elements): checked at once, analysed by
+  // assess_axes_change on a thread of its own (seconds with a human band: the loop, status and
+  // e-stop keep answering), decided and applied by finish_axes_change() from tick().
+  struct AxesChange {
+    v1::ParameterChangeRequest request;
+    std::uint64_t request_id{0};
+    TeleopAxesParams proposed;
+    std::future<AxesDecision> decision;
+  };
+  void request_axes_change(const v1::ParameterChangeRequest& c, v1::SupervisorReply& reply);
+  void finish_axes_change();
+  void apply_axes_change(const AxesChange& change, const AxesDecision& d,
+                         v1::ParameterChangeReply& reply);
+  void axes_change_decided(const v1::ParameterChangeRequest& c,
+                           const v1::ParameterChangeReply& reply);
+  // The n-axis model in force at the measured rate and round trip; `c` applied to it ("" or the
+  // refusal naming the field).
+  [[nodiscard]] TeleopAxesParams axes_in_force() const;
+  // The file as read with the n-axis gains (as matrices) and plane stiffnesses in force; the
+  // file itself, byte for byte, until a change applied.
+  [[nodiscard]] v1::SystemConfig axes_config_in_force() const;
+  [[nodiscard]] std::string propose_axes(const v1::ParameterChangeRequest& c,
+                                         TeleopAxesParams& proposed) const;
+  // The RETUNE's update for the n-axis values of `p` (gain matrices, plane stiffnesses).
+  [[nodiscard]] v1::ParameterUpdate axes_update(const TeleopAxesParams& p, std::uint64_t id,
+                                                std::uint64_t at) const;
   [[nodiscard]] std::string axes_configuration_mismatch() const;
   void adopt_parameters_in_force(const v1::Telemetry& t);
   void handle_request(const v1::SupervisorRequest& req, v1::SupervisorReply& reply);
@@ -324,6 +353,9 @@ class SupervisorCore {
   bool recording_file_lost_announced_{false};
   std::optional<v1::SupervisorStatus> replayed_recording_{};  // replay_recording()
   std::optional<AxesState> axes_{};                           // several axes only
+  std::optional<AxesChange> axes_change_{};      // the n-axis change being analysed, if any
+  std::uint64_t axes_requests_{0};               // n-axis change requests numbered so far
+  v1::ParameterChangeReply last_axes_change_{};  // the newest decided (status.last_change)
   bool report_replayed_{false};  // a replay shows a report only once one was recorded
 };
 

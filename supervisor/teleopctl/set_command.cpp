@@ -3,6 +3,8 @@
 #include <fmt/core.h>
 
 #include <chrono>
+#include <regex>
+#include <thread>
 #include <zmq.hpp>
 
 #include "common/transport/zmq_security.hpp"
@@ -67,6 +69,40 @@ void SupervisorClientFlags::use_local_launch_keys() {
   }
 }
 
+namespace {
+
+// Several axes: "master.planes[I].stiffness_N_per_m" / "slave.planes[I]..." and
+// "gains.kps[I,J]", parsed; nullopt for any other path.
+struct AxesPath {
+  bool plane{false};
+  bool slave{false};
+  std::string gain{};
+  unsigned index{0};  // the plane, or the row
+  unsigned column{0};
+};
+
+std::optional<AxesPath> axes_path(const std::string& path) {
+  static const std::regex plane(R"(^(master|slave)\.planes\[([0-9]{1,2})\]\.stiffness_N_per_m$)");
+  static const std::regex gain(R"(^gains\.(kpm|kps|kdm|kds|kvm|kvs|kfm)\[([0-9]),([0-9])\]$)");
+  std::smatch m;
+  AxesPath p;
+  if (std::regex_match(path, m, plane)) {
+    p.plane = true;
+    p.slave = m[1] == "slave";
+    p.index = static_cast<unsigned>(std::stoul(m[2]));
+    return p;
+  }
+  if (std::regex_match(path, m, gain)) {
+    p.gain = m[1];
+    p.index = static_cast<unsigned>(std::stoul(m[2]));
+    p.column = static_cast<unsigned>(std::stoul(m[3]));
+    return p;
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 std::pair<std::string, double> parse_setting(const std::string& text) {
   const auto eq = text.find('=');
   if (eq == std::string::npos) throw UsageError("expected PATH=VALUE, got '" + text + "'");
@@ -75,12 +111,46 @@ std::pair<std::string, double> parse_setting(const std::string& text) {
   bool known =
       path == "master.fixture.stiffness_N_per_m" || path == "slave.fixture.stiffness_N_per_m";
   for (const char* g : kGains) known = known || path == std::string("gains.") + g;
-  if (!known) {
+  if (!known && !axes_path(path)) {
     throw UsageError("cannot change '" + path +
                      "' live (gains.*, master.fixture.stiffness_N_per_m and "
-                     "slave.fixture.stiffness_N_per_m can be)");
+                     "slave.fixture.stiffness_N_per_m can be; with several axes "
+                     "master.planes[I].stiffness_N_per_m, slave.planes[I].stiffness_N_per_m, "
+                     "gains.kps[I,J] and gains.kps on every axis)");
   }
   return {path, parse_number(text.substr(eq + 1), path)};
+}
+
+v1::ParameterChangeRequest make_axes_change_request(
+    const std::vector<std::pair<std::string, double>>& settings, bool dry_run,
+    const std::string& requested_by) {
+  v1::ParameterChangeRequest c;
+  c.set_dry_run(dry_run);
+  c.set_requested_by(requested_by);
+  for (const auto& [path, value] : settings) {
+    if (const std::optional<AxesPath> a = axes_path(path); a && a->plane) {
+      v1::PlaneStiffnessChange& s = *c.add_plane_stiffness();
+      s.set_slave(a->slave);
+      s.set_plane(a->index);
+      s.set_stiffness_n_per_m(value);
+    } else if (a) {
+      v1::GainElementChange& g = *c.add_gain_element();
+      g.set_gain(a->gain);
+      g.set_row(a->index);
+      g.set_column(a->column);
+      g.set_value(value);
+    } else if (path.rfind("gains.", 0) == 0) {  // a scalar: every axis
+      v1::GainElementChange& g = *c.add_gain_element();
+      g.set_gain(path.substr(6));
+      g.set_every_axis(true);
+      g.set_value(value);
+    } else {
+      throw UsageError("'" + path + "' is a one-axis path; with several axes name the plane (" +
+                       (path.rfind("slave", 0) == 0 ? "slave" : "master") +
+                       ".planes[I].stiffness_N_per_m)");
+    }
+  }
+  return c;
 }
 
 v1::ParameterChangeRequest make_change_request(
@@ -92,6 +162,11 @@ v1::ParameterChangeRequest make_change_request(
   bool any_gain = false;
   v1::Gains g = gains_in_force;
   for (const auto& [path, value] : settings) {
+    if (axes_path(path)) {
+      throw UsageError("'" + path +
+                       "' names a plane or a gain element of several axes; this teleoperator "
+                       "has one axis");
+    }
     if (path == "master.fixture.stiffness_N_per_m") c.set_master_fixture_stiffness_n_per_m(value);
     if (path == "slave.fixture.stiffness_N_per_m") c.set_slave_fixture_stiffness_n_per_m(value);
     if (path.rfind("gains.", 0) == 0) {
@@ -104,6 +179,26 @@ v1::ParameterChangeRequest make_change_request(
   return c;
 }
 
+// Several axes: the supervisor analyses a change beside its loop (seconds with a human band)
+// and answers "pending"; its decision is then in its status, under the same request number.
+static std::optional<v1::SupervisorReply> await_axes_decision(
+    const SupervisorClientFlags& sup, const v1::ParameterChangeReply& pending, std::ostream& err) {
+  err << pending.reason() << "\n";
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(2);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    const auto status = supervisor_status(sup);
+    if (!status) continue;  // one lost reply: ask again
+    const v1::ParameterChangeReply& last = status->status().last_change();
+    if (last.request_id() == pending.request_id()) {
+      v1::SupervisorReply decided;
+      *decided.mutable_change() = last;
+      return decided;
+    }
+  }
+  return std::nullopt;
+}
+
 std::string set_usage() {
   return "usage: teleopctl set PATH=VALUE... [--dry-run] [--supervisor HOST:PORT] [--key FILE]\n"
          "                    [--server-key KEY|FILE] [--timeout-ms N] [--json]\n\n"
@@ -111,7 +206,11 @@ std::string set_usage() {
          "(with the measured round trip) and applies it only when the predicted minimum damping\n"
          "ratio meets the required one; both nodes then switch at an agreed master sequence,\n"
          "ramped. PATH: gains.kpm|kps|kdm|kds|kvm|kvs|kfm, master.fixture.stiffness_N_per_m,\n"
-         "slave.fixture.stiffness_N_per_m. --dry-run only predicts. Supervisor default\n"
+         "slave.fixture.stiffness_N_per_m. Several axes: master.planes[I].stiffness_N_per_m,\n"
+         "slave.planes[I].stiffness_N_per_m (plane I of the side, from 0), gains.kps[I,J]\n"
+         "(elements I,J and J,I: gain matrices stay symmetric), gains.kps (kps I on every\n"
+         "axis); the supervisor analyses such a change beside its loop and this waits for its\n"
+         "decision (up to 2 minutes). --dry-run only predicts. Supervisor default\n"
          "127.0.0.1:5567 (without --key and --server-key: the keys of a live `teleopctl launch`\n"
          "there, if any). --json prints the supervisor's teleop.v1.ParameterChangeReply "
          "(accepted,\n"
@@ -158,9 +257,14 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       return kExitNoReply;
     }
     v1::SupervisorRequest req;
-    *req.mutable_change() =
-        make_change_request(sets, now->status().report().gains(), dry_run, "teleopctl set");
-    const auto reply = supervisor_request(sup, req);
+    const bool several = now->status().report().axes() > 1;
+    *req.mutable_change() = several ? make_axes_change_request(sets, dry_run, "teleopctl set")
+                                    : make_change_request(sets, now->status().report().gains(),
+                                                          dry_run, "teleopctl set");
+    auto reply = supervisor_request(sup, req);
+    if (reply && reply->error().empty() && reply->change().pending()) {
+      reply = await_axes_decision(sup, reply->change(), err);
+    }
     if (!reply) {
       err << "teleopctl set: no reply from the supervisor at " << sup.endpoint << "\n";
       return kExitNoReply;
@@ -191,6 +295,13 @@ int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostrea
       out << fmt::format("  master fixture {:.0f} N/m, maximum stable {:.0f} N/m\n",
                          p.master_fixture_stiffness_n_per_m(),
                          p.max_stable_master_stiffness_n_per_m());
+    }
+    for (const v1::PlaneMargin& m : p.planes()) {
+      out << fmt::format("  {} plane {}: {:.0f} N/m", m.side(), m.index(), m.stiffness_n_per_m());
+      if (m.has_max_stable_stiffness_n_per_m()) {
+        out << fmt::format(", maximum stable {:.0f} N/m", m.max_stable_stiffness_n_per_m());
+      }
+      out << "\n";
     }
     if (r.accepted() && !dry_run) {
       out << "  change " << r.change_id() << " applies at master sequence "

@@ -1,7 +1,8 @@
 // `teleopctl set PATH=VALUE...`: a guarded parameter change through the supervisor, which
 // analyses it first and applies it only if the predicted teleoperator stays stable with the
 // required damping (issue 5 "Guards parameters"). PATH: gains.kpm ... gains.kfm,
-// master.fixture.stiffness_N_per_m, slave.fixture.stiffness_N_per_m.
+// master.fixture.stiffness_N_per_m, slave.fixture.stiffness_N_per_m; with several axes
+// master.planes[I].stiffness_N_per_m, slave.planes[I].stiffness_N_per_m and gains.kps[I,J].
 #pragma once
 
 #include <optional>
@@ -22,6 +23,11 @@ namespace teleop::ctl {
 [[nodiscard]] v1::ParameterChangeRequest make_change_request(
     const std::vector<std::pair<std::string, double>>& settings, const v1::Gains& gains_in_force,
     bool dry_run, const std::string& requested_by);
+// Several axes: plane stiffnesses and gain elements (a scalar gain is that gain on every axis);
+// UsageError for a one-axis fixture path.
+[[nodiscard]] v1::ParameterChangeRequest make_axes_change_request(
+    const std::vector<std::pair<std::string, double>>& settings, bool dry_run,
+    const std::string& requested_by);
 int run_set(const std::vector<std::string>& args, std::ostream& out, std::ostream& err);
 
 // Where and how a client reaches the supervisor: --supervisor HOST:PORT (request endpoint),

@@ -29,6 +29,7 @@
 #include <sstream>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 #include <zmq.hpp>
 
@@ -408,15 +409,13 @@ class TelemetryTap {
 
 // One command, one reply (nullopt on timeout).
 inline std::optional<v1::NodeCommandReply> send_command(
-    zmq::context_t& ctx, const std::string& endpoint, v1::NodeCommand::Kind kind,
+    zmq::context_t& ctx, const std::string& endpoint, const v1::NodeCommand& c,
     std::function<void(zmq::socket_t&)> secure = {}) {
   zmq::socket_t s(ctx, zmq::socket_type::req);
   s.set(zmq::sockopt::linger, 0);
   s.set(zmq::sockopt::rcvtimeo, 5000);
   if (secure) secure(s);
   s.connect(endpoint);
-  v1::NodeCommand c;
-  c.set_kind(kind);
   const std::string bytes = c.SerializeAsString();
   s.send(zmq::buffer(bytes), zmq::send_flags::none);
   zmq::message_t reply;
@@ -424,6 +423,15 @@ inline std::optional<v1::NodeCommandReply> send_command(
   v1::NodeCommandReply r;
   if (!r.ParseFromArray(reply.data(), static_cast<int>(reply.size()))) return std::nullopt;
   return r;
+}
+
+// One command of `kind` (no update), one reply.
+inline std::optional<v1::NodeCommandReply> send_command(
+    zmq::context_t& ctx, const std::string& endpoint, v1::NodeCommand::Kind kind,
+    std::function<void(zmq::socket_t&)> secure = {}) {
+  v1::NodeCommand c;
+  c.set_kind(kind);
+  return send_command(ctx, endpoint, c, std::move(secure));
 }
 
 // The supervisor's status from its request endpoint on this port (nullopt on timeout or a

@@ -159,6 +159,61 @@ TEST(ParameterSpace, AHumanBandIsHeldToTheFixedHumansCeilingsAtEveryForceLevel) 
                        "human.band.force_levels_N[2]: must be in"));
 }
 
+// An n-axis update (a RETUNE to a node of 3 axes with one master and two slave planes): the
+// sizes from the node's configuration, each value by its configuration field's rule, the gains
+// by the matrix rules (symmetric positive semidefinite), every problem named.
+TEST(ParameterSpace, AnNAxisUpdateIsCheckedAgainstTheNodesAxesPlanesAndTheMatrixRules) {
+  v1::ParameterUpdate u;
+  u.set_change_id(2);
+  u.set_axes(3);
+  for (int i = 0; i < 9; ++i) u.mutable_gains()->add_kps_matrix(i % 4 == 0 ? 600.0 : 0.0);
+  u.add_master_plane_stiffness_n_per_m(0.0);
+  u.add_slave_plane_stiffness_n_per_m(800.0);
+  u.add_slave_plane_stiffness_n_per_m(1500.0);
+  u.set_ramp_ms(200);
+  EXPECT_EQ(check_parameter_update_axes(u, 3, 1, 2), "");
+  // The one-axis check refuses it by name.
+  EXPECT_TRUE(Contains(check_parameter_update(u), "axes (3): an n-axis field"));
+  EXPECT_TRUE(
+      Contains(check_parameter_update(u), "slave_plane_stiffness_N_per_m: an n-axis field"));
+  // Another node: axes and plane counts.
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 2, 1, 2),
+                       "axes: an update for 3 axes, this one has 2"));
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 3, 1, 1),
+                       "slave_plane_stiffness_N_per_m: one stiffness per plane of the side (1 in "
+                       "the configuration), got 2"));
+  // A value out of its range or not finite, named with its index.
+  u.set_slave_plane_stiffness_n_per_m(1, 2e7);
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 3, 1, 2),
+                       "slave_plane_stiffness_N_per_m[1]: must be"));
+  u.set_slave_plane_stiffness_n_per_m(1, std::nan(""));
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 3, 1, 2),
+                       "slave_plane_stiffness_N_per_m[1]: must be finite, got nan"));
+  u.set_slave_plane_stiffness_n_per_m(1, 1500.0);
+  // kps with -700 off the diagonal (0, 1) and (1, 0): eigenvalue 600 - 700 < 0.
+  u.mutable_gains()->set_kps_matrix(1, -700.0);
+  u.mutable_gains()->set_kps_matrix(3, -700.0);
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 3, 1, 2),
+                       "gains.kps_matrix: not positive semidefinite: its smallest eigenvalue is "
+                       "-100"));
+  // A matrix of the wrong size.
+  u.mutable_gains()->clear_kps_matrix();
+  u.mutable_gains()->add_kps_matrix(600.0);
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 3, 1, 2), "gains.kps_matrix"));
+  // Twenty thousand NaNs: one line for the field.
+  v1::ParameterUpdate big = u;
+  big.mutable_gains()->clear_kps_matrix();
+  for (int i = 0; i < 20000; ++i) big.mutable_gains()->add_kfm_matrix(std::nan(""));
+  EXPECT_TRUE(Contains(check_parameter_update_axes(big, 3, 1, 2),
+                       "gains.kfm_matrix[0]: must be "
+                       "finite, got nan"));
+  EXPECT_LT(check_parameter_update_axes(big, 3, 1, 2).size(), 300U);
+  // The one-axis fixture fields have no place in it.
+  u.mutable_gains()->clear_kps_matrix();
+  u.set_slave_fixture_stiffness_n_per_m(100.0);
+  EXPECT_TRUE(Contains(check_parameter_update_axes(u, 3, 1, 2), "one-axis fields"));
+}
+
 TEST(ParameterSpace, ALiveUpdateIsCheckedByTheRulesOfTheConfigurationsFields) {
   v1::ParameterUpdate u;
   u.set_change_id(1);

@@ -334,6 +334,112 @@ TEST(NodeCoreAxes, TheSlaveStopsAtItsPlaneWithTheStaticPenetration) {
   EXPECT_NEAR(sent.fixture_penetration_m, expected_pen, 2e-5);
 }
 
+// The slave's static penetration into `plane` at stiffness k, by hand (the derivation in
+// TheSlaveStopsAtItsPlaneWithTheStaticPenetration).
+double penetration_by_hand(const control::Plane& plane, double k) {
+  const Eigen::Vector3d n = plane.normal.head(3);
+  return (kAlpha * kPush * n.dot(tilted()) / kHumanK - plane.offset_m) /
+         (1.0 + kBeta * kKp * k / (kKp * kHumanK) + k / kKp);
+}
+
+// A guarded change to both nodes (the supervisor's RETUNE): nothing moves before the agreed
+// master sequence, then every value ramps linearly over the ramp -- the plane from 2000 to
+// 800 N/m, K_dm and K_ds from 2 I to 4 I -- on both nodes, each by the master sequence it sees;
+// the pair then settles at the hand-solved penetration of the new plane.
+TEST(NodeCoreAxes, AGuardedChangeAppliesAtTheMasterSequenceRampsLinearlyAndMovesTheStatics) {
+  const control::Plane plane = slave_plane();
+  PairAxes p(kN, one_plane(plane));
+  ASSERT_NO_FATAL_FAILURE(p.engage());
+  for (int i = 0; i < 1500; ++i) p.cycle();
+  const double k_from = plane.stiffness_N_per_m;
+  const double k_to = 800.0;
+  EXPECT_NEAR(p.slave_records.back().fixture_penetration_m, penetration_by_hand(plane, k_from),
+              2e-5);
+  ActiveLawAxes master_active{};
+  ActiveLawAxes slave_active{};
+  ASSERT_TRUE(p.master.active_out().read(master_active));  // as built
+  ASSERT_TRUE(p.slave.active_out().read(slave_active));
+  EXPECT_EQ(master_active.change_id, 0U);
+  EXPECT_EQ(slave_active.slave_planes, 1);
+  EXPECT_EQ(slave_active.slave_planes_N_per_m[0], k_from);
+
+  // By hand, row-major 3 x 3: kpm = kps = 600 I, kdm = kds = 4 I, the rest 0.
+  RetuneAxes r;
+  r.id = 7;
+  for (int i = 0; i < kN; ++i) {
+    const auto d = static_cast<std::size_t>(i * kN + i);
+    r.gains[0][d] = kKp;
+    r.gains[1][d] = kKp;
+    r.gains[2][d] = 4.0;
+    r.gains[3][d] = 4.0;
+  }
+  r.slave_planes_N_per_m[0] = k_to;
+  const std::uint64_t at = p.master_records.back().sequence + 20;
+  r.apply_at_master_sequence = at;
+  r.ramp = 100ms;
+  p.master.post_retune(r);
+  p.slave.post_retune(r);
+  // Each node's value in force at each master sequence it ran at.
+  struct Seen {
+    std::uint64_t master_sequence;
+    ActiveLawAxes active;
+  };
+  std::vector<Seen> master_seen;
+  std::vector<Seen> slave_seen;
+  for (int i = 0; i < 200; ++i) {
+    p.cycle();
+    (void)p.master.active_out().read(master_active);
+    (void)p.slave.active_out().read(slave_active);
+    master_seen.push_back({p.master_records.back().master_sequence, master_active});
+    slave_seen.push_back({p.slave_records.back().master_sequence, slave_active});
+  }
+  for (const std::vector<Seen>* seen : {&master_seen, &slave_seen}) {
+    int ramped = 0;
+    for (const Seen& s : *seen) {
+      const ActiveLawAxes& a = s.active;
+      // The slave's law has the plane (this test's master is built without it).
+      const bool has_plane = a.slave_planes == 1;
+      if (s.master_sequence < at) {
+        ASSERT_EQ(a.change_id, 0U);
+        if (has_plane) {
+          ASSERT_EQ(a.slave_planes_N_per_m[0], k_from);
+        }
+        ASSERT_EQ(a.gains[3][0], kKd);
+        continue;
+      }
+      // 1 ms a cycle: j cycles after the switch the ramp is j / 100 of the way.
+      const double w = std::min(1.0, static_cast<double>(s.master_sequence - at) / 100.0);
+      ASSERT_EQ(a.change_id, 7U);
+      ASSERT_EQ(a.applied_at_master_sequence, at);
+      if (has_plane) {
+        ASSERT_NEAR(a.slave_planes_N_per_m[0], k_from + w * (k_to - k_from), 1e-9);
+      }
+      ASSERT_NEAR(a.gains[2][0], kKd + w * (4.0 - kKd), 1e-12);
+      ASSERT_NEAR(a.gains[3][4], kKd + w * (4.0 - kKd), 1e-12);
+      ASSERT_NEAR(a.gains[1][8], kKp, 1e-12);
+      ASSERT_EQ(a.gains[1][1], 0.0);
+      ASSERT_NEAR(a.ramp_progress, w, 1e-12);
+      if (s.master_sequence == at + 25) {  // a quarter: 2000 - 300 N/m, 2.5 Ns/m
+        if (has_plane) {
+          EXPECT_NEAR(a.slave_planes_N_per_m[0], 1700.0, 1e-9);
+        }
+        EXPECT_NEAR(a.gains[3][8], 2.5, 1e-12);
+        ++ramped;
+      }
+    }
+    EXPECT_EQ(ramped, 1);
+    EXPECT_EQ(seen->back().active.ramp_progress, 1.0);
+  }
+  EXPECT_EQ(p.master.active_change_id(), 7U);
+  EXPECT_EQ(p.to_master.state.parameter_change_id, 7U);
+  EXPECT_EQ(p.to_slave.state.parameter_change_id, 7U);
+  for (int i = 0; i < 1500; ++i) p.cycle();
+  ASSERT_EQ(p.slave.mode(), Mode::kEngaged);
+  const double deeper = penetration_by_hand(plane, k_to);
+  EXPECT_GT(deeper - penetration_by_hand(plane, k_from), 0.001);  // a softer plane: 1.4 mm deeper
+  EXPECT_NEAR(p.slave_records.back().fixture_penetration_m, deeper, 2e-5);
+}
+
 TEST(NodeCoreAxes, ASilentPeerPutsTheMasterInSafeWithinTheTimeoutAndItsForceRampsToZero) {
   PairAxes p(kN, one_plane(slave_plane()));  // in contact: the master feels a force
   ASSERT_NO_FATAL_FAILURE(p.engage());

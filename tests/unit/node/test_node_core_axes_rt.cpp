@@ -1,5 +1,6 @@
 // NodeCoreAxes::step allocates nothing at n = 3 and n = 6: link up, arm, aligning with the
-// centring spring, engaged with the operator's push, clutch and unclutch, a late wake-up into
+// centring spring, engaged with the operator's push, clutch and unclutch, a guarded parameter
+// change applied and ramped, a late wake-up into
 // safe and the safe ramp. The allocator is interposed (tests/support/alloc_counter.hpp) and
 // this thread's calls counted over the steps only.
 #include <gtest/gtest.h>
@@ -65,6 +66,27 @@ void run(int n) {
   ASSERT_TRUE(master.post_command(Command::kUnclutch));
   for (int i = 0; i < 100; ++i) cycle();
   ASSERT_EQ(master.mode(), Mode::kEngaged);
+  // A guarded change through its ramp (posted by the command thread, outside the count): the
+  // gains a fifth stiffer, the slave's planes halved, over 50 ms.
+  RetuneAxes r;
+  r.id = 1;
+  const NodeAxesSettings s = settings(Role::kSlave, n);
+  for (std::size_t g = 0; g < kGainMatrices; ++g) {
+    r.gains[g] = gain_values(s.law.gains, n)[g];
+    for (double& v : r.gains[g]) v *= 1.2;
+  }
+  for (int i = 0; i < s.law.slave_planes.size(); ++i) {
+    r.slave_planes_N_per_m[static_cast<std::size_t>(i)] =
+        0.5 * s.law.slave_planes.plane(i).stiffness_N_per_m;
+  }
+  r.apply_at_master_sequence = to_slave.state.sequence + 5;
+  r.ramp = 50ms;
+  master.post_retune(r);
+  slave.post_retune(r);
+  for (int i = 0; i < 100; ++i) cycle();
+  ASSERT_EQ(master.mode(), Mode::kEngaged);
+  ASSERT_EQ(master.active_change_id(), 1U);
+  ASSERT_EQ(slave.active_change_id(), 1U);
   cycle(200ms);  // a late wake-up: safe, then the ramp
   ASSERT_EQ(master.mode(), Mode::kSafe);
   for (int i = 0; i < 50; ++i) cycle(200ms);

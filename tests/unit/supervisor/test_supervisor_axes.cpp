@@ -16,10 +16,12 @@
 #include <numbers>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "common/config/axes_config.hpp"
 #include "common/config/config_loader.hpp"
+#include "common/config/parameter_space.hpp"
 #include "common/record/session.hpp"
 #include "common/stability/analysis_axes.hpp"
 #include "common/stability/analyzer.hpp"
@@ -608,6 +610,172 @@ TEST(SupervisorAxes, ARefusedChangeSaysWhatTheGuardWouldDecideForEachPlane) {
             std::string::npos)
       << reply.change().reason();
   EXPECT_TRUE(banded_ports.sent.empty());
+}
+
+// ---- guarded n-axis changes -------------------------------------------------------------------
+
+// Ticks the core (10 ms of fake time a tick, 5 ms of real time) until the n-axis change request
+// `id` is decided: the guard runs on a thread of its own.
+v1::ParameterChangeReply await_decision(SupervisorCore& core, std::int64_t& now, std::uint64_t id) {
+  for (int i = 0; i < 4000 && core.status().last_change().request_id() != id; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    now += 10 * kMs;
+    core.tick(now);
+  }
+  return core.status().last_change();
+}
+
+v1::SupervisorRequest plane_request(double k, bool dry_run = false) {
+  v1::SupervisorRequest req;
+  v1::PlaneStiffnessChange& p = *req.mutable_change()->add_plane_stiffness();
+  p.set_slave(true);
+  p.set_plane(0);
+  p.set_stiffness_n_per_m(k);
+  req.mutable_change()->set_dry_run(dry_run);
+  req.mutable_change()->set_requested_by("test");
+  return req;
+}
+
+// The isotropic tilted plane's limit is the one-axis exact limit (the test above, computed here
+// again by the one-axis search): a plane stiffness 5 % above it is refused naming the plane and
+// nothing goes out; 50 % of it is accepted and sent to both nodes as one n-axis RETUNE (the
+// file's gain matrices, the new plane stiffness, the supervisor's ramp), and is then the
+// configuration in force.
+TEST(SupervisorAxes, APlaneAboveItsExactLimitIsRefusedOneBelowItGoesToBothNodes) {
+  const config::LoadedConfig c = paddles3();
+  const TeleopParams one =
+      config::to_teleop_params(config::load_config_text(isotropic(1, "", 1500.0), "one"));
+  const stability::StiffnessLimit limit =
+      stability::max_stable_stiffness(one, stability::Side::kSlave);
+  ASSERT_TRUE(limit.max_stable_stiffness_N_per_m.has_value()) << limit.reason;
+  const double k_max = *limit.max_stable_stiffness_N_per_m;
+  FakePorts ports;
+  SupervisorCore core(c, {}, ports);
+  core.start(kT0);
+  run(core, ports, kT0, 100 * kMs, quiet, quiet);
+  std::int64_t now = kT0 + 100 * kMs;
+
+  v1::SupervisorReply reply = core.on_request(plane_request(1.05 * k_max), "", now);
+  ASSERT_TRUE(reply.has_change()) << reply.error();
+  EXPECT_TRUE(reply.change().pending()) << reply.change().reason();
+  // The loop goes on meanwhile: a status request is answered at once.
+  v1::SupervisorRequest status;
+  status.mutable_status();
+  EXPECT_TRUE(core.on_request(status, "", now).has_status());
+  v1::ParameterChangeReply decided = await_decision(core, now, reply.change().request_id());
+  ASSERT_EQ(decided.request_id(), reply.change().request_id());
+  EXPECT_FALSE(decided.accepted());
+  EXPECT_NE(decided.reason().find("refused"), std::string::npos) << decided.reason();
+  EXPECT_NE(decided.reason().find("slave plane 0"), std::string::npos) << decided.reason();
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::RETUNE), 0U);
+
+  reply = core.on_request(plane_request(0.5 * k_max), "", now);
+  ASSERT_TRUE(reply.change().pending()) << reply.change().reason();
+  decided = await_decision(core, now, reply.change().request_id());
+  ASSERT_TRUE(decided.accepted()) << decided.reason();
+  EXPECT_EQ(decided.change_id(), 1U);
+  ASSERT_EQ(ports.sent_of(v1::NodeCommand::RETUNE), 2U);
+  for (const auto& [side, cmd] : ports.sent) {
+    if (cmd.kind() != v1::NodeCommand::RETUNE) continue;
+    const v1::ParameterUpdate& u = cmd.update();
+    EXPECT_EQ(u.axes(), 3U);
+    EXPECT_EQ(u.change_id(), 1U);
+    EXPECT_EQ(u.apply_at_master_sequence(), decided.apply_at_master_sequence());
+    ASSERT_EQ(u.slave_plane_stiffness_n_per_m_size(), 1);
+    EXPECT_EQ(u.slave_plane_stiffness_n_per_m(0), 0.5 * k_max);
+    EXPECT_EQ(u.master_plane_stiffness_n_per_m_size(), 0);
+    // The file's gains, kps = 600 I, kdm = 2 I, as 3 x 3 row-major matrices.
+    ASSERT_EQ(u.gains().kps_matrix_size(), 9);
+    for (int i = 0; i < 9; ++i) {
+      EXPECT_EQ(u.gains().kps_matrix(i), i % 4 == 0 ? 600.0 : 0.0) << i;
+      EXPECT_EQ(u.gains().kdm_matrix(i), i % 4 == 0 ? 2.0 : 0.0) << i;
+    }
+    EXPECT_EQ(u.ramp_ms(), 200.0);
+    EXPECT_EQ(config::check_parameter_update_axes(u, 3, 0, 1), "");
+  }
+  EXPECT_EQ(ports.sent.front().first, Side::kMaster);
+  EXPECT_EQ(core.config_in_force().slave().fixture().plane(0).stiffness_n_per_m(), 0.5 * k_max);
+  // The published report is the prediction: the plane at half its limit.
+  ASSERT_EQ(ports.reports.back().planes_size(), 1);
+  EXPECT_EQ(ports.reports.back().planes(0).stiffness_n_per_m(), 0.5 * k_max);
+  EXPECT_NEAR(ports.reports.back().planes(0).max_stable_stiffness_n_per_m(), k_max, 1e-6 * k_max);
+}
+
+// A request the nodes could not take is refused at once, naming the field: a plane the side
+// does not have, a gain element that makes its matrix indefinite (kps 600 I with -700 at (0, 1)
+// and (1, 0): eigenvalue -100), an element outside the matrix; nothing is analysed or sent.
+TEST(SupervisorAxes, AMalformedNAxisRequestIsRefusedAtOnceNamingTheField) {
+  FakePorts ports;
+  SupervisorCore core(paddles3(), {}, ports);
+  core.start(kT0);
+  run(core, ports, kT0, 100 * kMs, quiet, quiet);
+  const std::int64_t now = kT0 + 100 * kMs;
+  v1::SupervisorRequest req = plane_request(800.0);
+  req.mutable_change()->mutable_plane_stiffness(0)->set_plane(3);
+  v1::SupervisorReply reply = core.on_request(req, "", now);
+  EXPECT_FALSE(reply.change().pending());
+  EXPECT_NE(reply.change().reason().find("slave.planes[3]: the slave has 1 plane(s)"),
+            std::string::npos)
+      << reply.change().reason();
+  v1::SupervisorRequest gain;
+  v1::GainElementChange& g = *gain.mutable_change()->add_gain_element();
+  g.set_gain("kps");
+  g.set_row(0);
+  g.set_column(1);
+  g.set_value(-700.0);
+  reply = core.on_request(gain, "", now);
+  EXPECT_FALSE(reply.change().pending());
+  EXPECT_NE(reply.change().reason().find("gains.kps_matrix: not positive semidefinite"),
+            std::string::npos)
+      << reply.change().reason();
+  g.set_row(3);
+  reply = core.on_request(gain, "", now);
+  EXPECT_NE(reply.change().reason().find("gains.kps[3,1]: rows and columns are 0 to 2"),
+            std::string::npos)
+      << reply.change().reason();
+  EXPECT_TRUE(ports.sent.empty());
+}
+
+// The audit per element: values the supervisor approved (the file's, a ramp between approved
+// ones) raise nothing; a plane stiffness nobody approved is a CRITICAL alarm naming that plane,
+// and both nodes are e-stopped.
+TEST(SupervisorAxes, AnUnapprovedPlaneStiffnessInForceIsCriticalAndEStopsBothNodes) {
+  FakePorts ports;
+  SupervisorCore core(paddles3(), {}, ports);
+  core.start(kT0);
+  run(core, ports, kT0, 100 * kMs, quiet, quiet);
+  std::int64_t now = kT0 + 100 * kMs;
+  auto active = [](double slave_k, double progress) {
+    v1::Telemetry t;
+    t.set_session_id(22);
+    t.set_mode(v1::ENGAGED);
+    v1::ActiveParameters& a = *t.mutable_active();
+    a.set_axes(3);
+    for (int i = 0; i < 9; ++i) {
+      const double d = i % 4 == 0 ? 1.0 : 0.0;
+      a.mutable_gains()->add_kpm_matrix(600.0 * d);
+      a.mutable_gains()->add_kps_matrix(600.0 * d);
+      a.mutable_gains()->add_kdm_matrix(2.0 * d);
+      a.mutable_gains()->add_kds_matrix(2.0 * d);
+      a.mutable_gains()->add_kvm_matrix(0.0);
+      a.mutable_gains()->add_kvs_matrix(0.0);
+      a.mutable_gains()->add_kfm_matrix(0.0);
+    }
+    a.add_slave_plane_stiffness_n_per_m(slave_k);
+    a.set_ramp_progress(progress);
+    return t;
+  };
+  core.on_telemetry(Side::kSlave, active(1500.0, 1.0), now);  // the file's values
+  EXPECT_TRUE(ports.alarms_of("unapproved_parameters").empty());
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 0U);
+  now += 10 * kMs;
+  core.on_telemetry(Side::kSlave, active(3000.0, 1.0), now);
+  const std::vector<v1::Alarm> a = ports.alarms_of("unapproved_parameters");
+  ASSERT_EQ(a.size(), 1U);
+  EXPECT_EQ(a[0].severity(), v1::Alarm::CRITICAL);
+  EXPECT_NE(a[0].message().find("slave.planes[0].stiffness_N_per_m 3000"), std::string::npos)
+      << a[0].message();
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 2U);
 }
 
 }  // namespace
