@@ -408,10 +408,9 @@ TEST(AxesStability, RotatingTheCoordinatesLeavesTheSpectrumUnchanged) {
 
 // --- plane limits ------------------------------------------------------------------------------
 
-double radius_at(const TeleopAxesParams& a, double k) {
-  TeleopAxesParams b = a;
-  b.master_planes[0].stiffness_N_per_m = k;
-  const DiscreteModelAxes model(b, true, false);
+// The loop's spectral radius: Eigen's eigenvalues of DiscreteModelAxes's blocks, no search.
+double loop_radius(const TeleopAxesParams& b, bool master_used, bool slave_used) {
+  const DiscreteModelAxes model(b, master_used, slave_used);
   double r = 0.0;
   for (const AxesBlock& blk : model.build(model.master_plant(b.human.fixed),
                                           plane_stiffness_matrix(b.master_planes, b.axes),
@@ -419,6 +418,12 @@ double radius_at(const TeleopAxesParams& a, double k) {
     r = std::max(r, Eigen::EigenSolver<Mat>(blk.a, false).eigenvalues().cwiseAbs().maxCoeff());
   }
   return r;
+}
+
+double radius_at(const TeleopAxesParams& a, double k) {
+  TeleopAxesParams b = a;
+  b.master_planes[0].stiffness_N_per_m = k;
+  return loop_radius(b, true, false);
 }
 
 TEST(AxesStability, PlaneLimitIsTheBisectionOfTheSpectralRadius) {
@@ -635,19 +640,11 @@ void expect_relative(double got, double want, const std::string& what) {
       << what << ": " << got << " vs " << want;
 }
 
-// The whole loop's spectral radius (Eigen's eigenvalues of DiscreteModelAxes, no limit search)
-// with plane `l` at `k`, the other planes as configured.
+// The whole loop's spectral radius with plane `l` at `k`, the other planes as configured.
 double whole_radius(const TeleopAxesParams& a, const PlaneLimit& l, double k) {
   TeleopAxesParams b = a;
   (l.side == Side::kMaster ? b.master_planes : b.slave_planes)[l.plane].stiffness_N_per_m = k;
-  const DiscreteModelAxes model(b, true, true);
-  double r = 0.0;
-  for (const AxesBlock& blk : model.build(model.master_plant(b.human.fixed),
-                                          plane_stiffness_matrix(b.master_planes, b.axes),
-                                          plane_stiffness_matrix(b.slave_planes, b.axes))) {
-    r = std::max(r, Eigen::EigenSolver<Mat>(blk.a, false).eigenvalues().cwiseAbs().maxCoeff());
-  }
-  return r;
+  return loop_radius(b, true, true);
 }
 
 // The planes'-frame limit against the whole loop: its eigenvalues cross the unit circle within
