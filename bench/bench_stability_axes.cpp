@@ -57,6 +57,23 @@ void BM_AxesIsotropicOneConfiguration(benchmark::State& state) {
 }
 BENCHMARK(BM_AxesIsotropicOneConfiguration)->Unit(benchmark::kMicrosecond);
 
+// The isotropic loop with both planes tilted, orthogonal to each other (exactly: 0.6 * 0.8 -
+// 0.8 * 0.6 = 0): analysed in the planes' frame axis by axis; `whole` = the 21-state model.
+void BM_AxesIsotropicTiltedOneConfiguration(benchmark::State& state) {
+  TeleopAxesParams a = isotropic(HumanKind::kFixed);
+  Vec m(3);
+  m << 0.6, 0.0, 0.8;
+  Vec s(3);
+  s << 0.8, 0.0, -0.6;
+  a.master_planes[0].normal = m;
+  a.slave_planes[0].normal = s;
+  AxesAnalysisOptions o;
+  o.decouple = state.range(0) == 0;
+  for (auto _ : state) benchmark::DoNotOptimize(analyze_axes(a, o));
+  state.SetLabel(o.decouple ? "planes' frame" : "whole");
+}
+BENCHMARK(BM_AxesIsotropicTiltedOneConfiguration)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+
 void BM_AxesCoupledOneConfiguration(benchmark::State& state) {
   const TeleopAxesParams a = coupled(HumanKind::kFixed);
   for (auto _ : state) benchmark::DoNotOptimize(analyze_axes(a));

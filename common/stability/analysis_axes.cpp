@@ -234,9 +234,22 @@ Spectrum AxesEvaluator::spectrum(const HumanChoice& h, const Mat& kmvf, const Ma
                                  bool estimate_error) const {
   std::vector<Spectrum> parts;
   if (decoupled()) {
+    parts.reserve(static_cast<size_t>(n_));  // a copied part refers to an earlier one
     for (int j = 0; j < n_; ++j) {
-      parts.push_back(
-          per_axis(j).spectrum(h[static_cast<size_t>(j)], kmvf(j, j), ksvf(j, j), estimate_error));
+      const auto uj = static_cast<size_t>(j);
+      // An axis with the same loop, human and planes as an earlier one (the free tangent axes
+      // of an isotropic loop) has the same spectrum: copied, not computed again.
+      int same = -1;
+      for (int i = 0; i < j && same < 0; ++i) {
+        const auto ui = static_cast<size_t>(i);
+        if (axis_source_[ui] == axis_source_[uj] && h[ui] == h[uj] && kmvf(i, i) == kmvf(j, j) &&
+            ksvf(i, i) == ksvf(j, j)) {
+          same = i;
+        }
+      }
+      parts.push_back(same >= 0
+                          ? parts[static_cast<size_t>(same)]
+                          : per_axis(j).spectrum(h[uj], kmvf(j, j), ksvf(j, j), estimate_error));
     }
   } else {
     for (const AxesBlock& b : blocks(h, kmvf, ksvf)) {
@@ -427,7 +440,9 @@ AxesAnalysis invalid_analysis(std::string why) {
   return out;
 }
 
-AxesAnalysis analyze_valid(const TeleopAxesParams& params, const AxesAnalysisOptions& options);
+// `params` analysed; `configured` (the same loop, perhaps in another frame) for the plane limits.
+AxesAnalysis analyze_valid(const TeleopAxesParams& params, const TeleopAxesParams& configured,
+                           const AxesAnalysisOptions& options);
 
 }  // namespace
 
@@ -441,7 +456,13 @@ AxesAnalysis analyze_axes(const TeleopAxesParams& params, const AxesAnalysisOpti
     return invalid_analysis("analysis.stiffness_tolerance_N_per_m must be positive and finite");
   }
   try {
-    return analyze_valid(params, options);
+    // Isotropic with tilted planes: the same loop in the planes' frame, axis by axis.
+    if (options.decouple) {
+      if (const std::optional<detail::PlaneFrame> f = detail::in_plane_frame(params)) {
+        return analyze_valid(f->params, params, options);
+      }
+    }
+    return analyze_valid(params, params, options);
   } catch (const std::exception& e) {
     return invalid_analysis(e.what());
   }
@@ -449,7 +470,8 @@ AxesAnalysis analyze_axes(const TeleopAxesParams& params, const AxesAnalysisOpti
 
 namespace {
 
-AxesAnalysis analyze_valid(const TeleopAxesParams& params, const AxesAnalysisOptions& options) {
+AxesAnalysis analyze_valid(const TeleopAxesParams& params, const TeleopAxesParams& configured,
+                           const AxesAnalysisOptions& options) {
   AxesAnalysis out;
   const AxesEvaluator ev(params, options);
   const Mat kmvf = plane_stiffness_matrix(params.master_planes, params.axes);
@@ -502,10 +524,10 @@ AxesAnalysis analyze_valid(const TeleopAxesParams& params, const AxesAnalysisOpt
   if (!options.plane_limits) return out;
   double closest = -1.0;
   for (const Side side : {Side::kMaster, Side::kSlave}) {
-    const auto& planes = side == Side::kMaster ? params.master_planes : params.slave_planes;
+    const auto& planes = side == Side::kMaster ? configured.master_planes : configured.slave_planes;
     for (std::size_t i = 0; i < planes.size(); ++i) {
       if (planes[i].stiffness_N_per_m == 0.0) continue;
-      out.plane_limits.push_back(plane_stiffness_limit(params, side, i, options));
+      out.plane_limits.push_back(plane_stiffness_limit(configured, side, i, options));
       const PlaneLimit& l = out.plane_limits.back();
       const double ratio = l.max_stable_stiffness_N_per_m && *l.max_stable_stiffness_N_per_m > 0.0
                                ? planes[i].stiffness_N_per_m / *l.max_stable_stiffness_N_per_m

@@ -4,9 +4,11 @@
 #include <Eigen/Core>
 #include <atomic>
 #include <cstddef>
+#include <optional>
 #include <thread>
 #include <vector>
 
+#include "common/core/teleop_axes.hpp"
 #include "common/stability/analyzer.hpp"
 
 namespace teleop::stability::detail {
@@ -21,6 +23,25 @@ inline int normal_axis(const Eigen::VectorXd& normal) {
   }
   return axis;
 }
+
+// An isotropic teleoperator (masses, gains and a fixed human scalar multiples of the identity,
+// equal damping on every axis, no band) whose stiff planes' normals are pairwise parallel or
+// orthogonal, exactly as floating-point numbers (n == +-m componentwise or n . m == 0), written
+// in the planes' own frame: an orthogonal change of coordinates leaves every matrix as it is and
+// turns each plane into one along an axis, where the axes decouple (docs/architecture.md §2.9).
+struct PlaneFrame {
+  TeleopAxesParams params;  // the same loop, every considered plane's normal a unit axis
+  // Per plane of each side: the rotated plane's stiffness over the configured one (|n|^2, the
+  // eigenvalue of n n^T); a plane left out of the frame (zero stiffness) has 1 and axis 0.
+  std::vector<double> master_scale;
+  std::vector<double> slave_scale;
+};
+
+// Nothing when the loop is not isotropic, a considered normal is neither parallel nor
+// orthogonal to another, or every considered normal already lies along an axis (the axis-by-axis
+// analysis applies as it stands). Considered: planes of non-zero stiffness and `searched`.
+[[nodiscard]] std::optional<PlaneFrame> in_plane_frame(
+    const TeleopAxesParams& p, const PlaneFixtureParams* searched = nullptr);
 
 // Runs f(i) for i in [0, n) on the analysis threads.
 template <class F>

@@ -473,6 +473,20 @@ PlaneLimit plane_stiffness_limit(const TeleopAxesParams& params, Side side, std:
     throw std::invalid_argument(fmt::format("{}_planes has no plane {}",
                                             side == Side::kMaster ? "master" : "slave", plane));
   }
+  if (options.decouple) {
+    if (const std::optional<detail::PlaneFrame> f =
+            detail::in_plane_frame(params, &planes[plane])) {
+      // The same loop in the planes' frame, where this plane lies along an axis; its stiffness
+      // there is |n|^2 times the configured one (the frame's limits are scaled back).
+      const double scale = (side == Side::kMaster ? f->master_scale : f->slave_scale)[plane];
+      AxesAnalysisOptions o = options;
+      o.max_stiffness_N_per_m *= scale;
+      PlaneLimit l = plane_stiffness_limit(f->params, side, plane, o);
+      if (l.max_stable_stiffness_N_per_m) *l.max_stable_stiffness_N_per_m /= scale;
+      if (l.limit_crossing_N_per_m) *l.limit_crossing_N_per_m /= scale;
+      return l;
+    }
+  }
   try {
     std::optional<AxesEvaluator> ev;
     ev.emplace(params, options, side == Side::kMaster, side == Side::kSlave);
