@@ -26,6 +26,7 @@
 #include "common/device/usb_emulator.hpp"
 #include "common/node/node_core_axes.hpp"
 #include "common/runtime/node_app.hpp"
+#include "tests/unit/device/usb_axes_rig.hpp"
 
 namespace teleop::node {
 namespace {
@@ -37,10 +38,10 @@ using transport::Role;
 const std::string kCartesian3 = std::string(TELEOP_SOURCE_DIR) + "/examples/cartesian3.textproto";
 const std::string kFiveBar = std::string(TELEOP_SOURCE_DIR) + "/examples/five_bar.textproto";
 
-// The paddle's encoder (500 counts per motor turn, 10:1): one count is 2 pi / 5000 rad of
-// joint, 0.115 m of arc per radian on a Cartesian axis.
-constexpr double kCount_rad = 2.0 * std::numbers::pi / 5000.0;
-constexpr double kCount_m = kCount_rad * 0.115;
+// The paddle's encoder: kCount_rad of joint, kCount_m of arc on a Cartesian axis per count.
+using device::test_axes::eventually;
+using device::test_axes::kCount_m;
+using device::test_axes::kCount_rad;
 
 // The centring spring the tests set (link.*): k, b and the ceiling of |F|.
 constexpr double kCentringK = 40.0;
@@ -48,21 +49,11 @@ constexpr double kCentringB = 0.3;
 constexpr double kCentringMax = 0.4;
 
 // Cartesian actuators: K_T (N/A) and K_amp (A/count) per channel.
-constexpr double kForceConstant[3] = {2.0, 4.0, 1.0};
+constexpr double kForceConstant[3] = {3.0, 4.0, 1.0};
 constexpr double kAmplifier[3] = {2.5e-4, 2.5e-4, 5e-4};
 // Five-bar joints: K_T (N m/A) and K_amp (A/count).
 constexpr double kTorqueConstant[2] = {0.05, 0.08};
 constexpr double kJointAmplifier[2] = {1e-4, 1e-4};
-
-template <typename Predicate>
-bool eventually(Predicate done) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds{20};
-  while (!done()) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(std::chrono::microseconds{50});
-  }
-  return true;
-}
 
 std::vector<std::string> centring() {
   return {"link.centring_stiffness_N_per_m=" + std::to_string(kCentringK),
@@ -73,16 +64,16 @@ std::vector<std::string> centring() {
 std::vector<std::string> cartesian_usb_master() {
   std::vector<std::string> o = centring();
   o.push_back("master.device.kind=USB");
-  o.push_back("master.device.force_constant_N_per_A=[2, 4, 1]");
-  o.push_back("master.device.amplifier_A_per_count=[2.5e-4, 2.5e-4, 5e-4]");
+  o.push_back("master.device.force_constant_N_per_A=3,4,1");
+  o.push_back("master.device.amplifier_A_per_count=2.5e-4,2.5e-4,5e-4");
   return o;
 }
 
 std::vector<std::string> five_bar_usb_master() {
   std::vector<std::string> o = centring();
   o.push_back("master.device.kind=USB");
-  o.push_back("master.device.torque_constant_N_m_per_A=[0.05, 0.08]");
-  o.push_back("master.device.amplifier_A_per_count=[1e-4, 1e-4]");
+  o.push_back("master.device.torque_constant_N_m_per_A=0.05,0.08");
+  o.push_back("master.device.amplifier_A_per_count=1e-4,1e-4");
   return o;
 }
 
@@ -113,7 +104,8 @@ Eigen::Matrix2d five_bar_jacobian(const Eigen::Vector2d& q) {
   return j;
 }
 
-const Eigen::Vector2d kHome_rad{2.0 * std::numbers::pi / 3.0, std::numbers::pi / 3.0};
+// The file's home, 120 and 60 degrees (as the rig's).
+using device::test_axes::kHome_rad;
 
 // The centring force on a still master with the slave at the origin: -k x_m, scaled to norm
 // kCentringMax when above it (alpha = 1).
@@ -263,7 +255,7 @@ TEST(NodeUsbAxes, TheConfigurationGivesTheMasterAUsbDeviceOfItsKinematicsAndActu
   EXPECT_EQ(cart.usb_axes.link.watchdog, 35ms);
   EXPECT_EQ(cart.usb_axes.kinematics, device::DeviceKinematics::kCartesian);
   ASSERT_EQ(cart.usb_axes.actuators.size(), 3U);
-  EXPECT_DOUBLE_EQ(cart.usb_axes.actuators[2].torque_constant_per_A, 1.0);
+  EXPECT_DOUBLE_EQ(cart.usb_axes.actuators[0].torque_constant_per_A, 3.0);
   // The slave of the same file stays simulated.
   EXPECT_EQ(config::to_node_axes_setup(config::parse_config_file(kCartesian3, ids), Role::kSlave)
                 .device_kind,
@@ -275,21 +267,22 @@ TEST(NodeUsbAxes, BadActuatorGainsOrAHomeAtASingularityAreRefusedNamingTheField)
     base.push_back(extra);
     return base;
   };
-  std::string e = refusal_of(
-      with(cartesian_usb_master(), "master.device.amplifier_A_per_count=[2.5e-4, 2.5e-4]"),
-      kCartesian3);
+  std::string e =
+      refusal_of({"master.device.kind=USB", "master.device.force_constant_N_per_A=3,4,1",
+                  "master.device.amplifier_A_per_count=2.5e-4,2.5e-4"},
+                 kCartesian3);
   EXPECT_NE(e.find("master.device.amplifier_A_per_count: must have 3 elements"), std::string::npos)
       << e;
   e = refusal_of(with(cartesian_usb_master(), "master.device.force_constant_N_per_A[1]=nan"),
                  kCartesian3);
-  EXPECT_NE(e.find("master.device.force_constant_N_per_A"), std::string::npos) << e;
-  EXPECT_NE(e.find("nan"), std::string::npos) << e;
+  EXPECT_NE(e.find("master.device.force_constant_N_per_A[1]: must be finite, got nan"),
+            std::string::npos)
+      << e;
   e = refusal_of(with(cartesian_usb_master(), "master.device.amplifier_A_per_count[0]=0"),
                  kCartesian3);
-  EXPECT_NE(e.find("master.device.amplifier_A_per_count"), std::string::npos) << e;
+  EXPECT_NE(e.find("master.device.amplifier_A_per_count[0]:"), std::string::npos) << e;
   // The five-bar's joints take torque constants; a USB five-bar needs them.
-  e = refusal_of(with(five_bar_usb_master(), "master.device.force_constant_N_per_A=[1, 1]"),
-                 kFiveBar);
+  e = refusal_of(with(five_bar_usb_master(), "master.device.force_constant_N_per_A=1,1"), kFiveBar);
   EXPECT_NE(e.find("master.device.force_constant_N_per_A: not for this device's kinematics"),
             std::string::npos)
       << e;
@@ -297,13 +290,14 @@ TEST(NodeUsbAxes, BadActuatorGainsOrAHomeAtASingularityAreRefusedNamingTheField)
   EXPECT_NE(e.find("master.device.torque_constant_N_m_per_A: a USB five-bar needs"),
             std::string::npos)
       << e;
-  // Home with the elbows 0.3996 m apart, 4 mm short of the distal links' reach (0.4 m): the
-  // distal links meet at 0.089 rad from aligned, |sin| 0.089 < 0.2.
+  // Home at (pi - 0.05, 0.05): the elbows (-+0.1998125, 0.0074969) are 0.3996251 m apart,
+  // 0.4 mm short of the distal links' reach (0.4 m). Each distal link leaves the chord at
+  // atan(sqrt(0.2^2 - 0.1998125^2) / 0.1998125) = 0.0433001 rad, so the two meet 0.0866003 rad
+  // from aligned: |sin| = 0.0864921 < 0.2 (the proximal-distal angles are 0.0933 from aligned).
   e = refusal_of(with(five_bar_usb_master(),
-                      "master.device.kinematics.five_bar.home_joint_rad=[3.0915926535897933, "
-                      "0.05]"),
+                      "master.device.kinematics.five_bar.home_joint_rad=3.0915926535897933,0.05"),
                  kFiveBar);
-  EXPECT_NE(e.find("master.device.kinematics.five_bar.home_joint_rad: the home pose is 0.089"),
+  EXPECT_NE(e.find("master.device.kinematics.five_bar.home_joint_rad: the home pose is 0.0864921 "),
             std::string::npos)
       << e;
   // The gains are n-axis fields: a one-axis file refuses them.
@@ -311,8 +305,8 @@ TEST(NodeUsbAxes, BadActuatorGainsOrAHomeAtASingularityAreRefusedNamingTheField)
     (void)config::to_node_setup(
         config::parse_config_file(
             std::string(TELEOP_SOURCE_DIR) + "/examples/paddles.textproto",
-            {"master.device.kind=USB", "master.device.amplifier_A_per_count=[1e-4]",
-             "master.device.force_constant_N_per_A=[2]"}),
+            {"master.device.kind=USB", "master.device.amplifier_A_per_count=1e-4",
+             "master.device.force_constant_N_per_A=2"}),
         Role::kMaster);
     ADD_FAILURE() << "no error";
   } catch (const config::ConfigError& error) {
