@@ -245,6 +245,41 @@ KinematicsConfig read_kinematics(Problems& problems, const std::string& side, co
   return out;
 }
 
+// A USB device's actuators (Device.torque_constant_N_m_per_A / force_constant_N_per_A and
+// amplifier_A_per_count): K_T in the unit the kinematics takes, n of each or none (a five-bar
+// on USB needs them). Elements' signs and ceilings are check_fields'.
+std::vector<ActuatorGains> read_actuators(Problems& problems, const std::string& side,
+                                          const v1::Device& d, const KinematicsConfig& k, int n) {
+  const std::string prefix = side + ".device.";
+  const bool five_bar = k.kind == KinematicsConfig::Kind::kFiveBar;
+  const char* fits = five_bar ? "torque_constant_N_m_per_A" : "force_constant_N_per_A";
+  const char* other = five_bar ? "force_constant_N_per_A" : "torque_constant_N_m_per_A";
+  const Values& constants = five_bar ? d.torque_constant_n_m_per_a() : d.force_constant_n_per_a();
+  const Values& wrong = five_bar ? d.force_constant_n_per_a() : d.torque_constant_n_m_per_a();
+  const Values& amplifier = d.amplifier_a_per_count();
+  if (!wrong.empty()) {
+    problems.add(prefix + other,
+                 std::string("not for this device's kinematics: give ") + fits +
+                     (five_bar ? " (a five-bar's joints take torque, N m/A)"
+                               : " (a Cartesian axis takes force at the handle, N/A)"));
+  }
+  if (constants.empty() && amplifier.empty()) {
+    if (five_bar && d.kind() == v1::USB) {
+      problems.add(prefix + fits, "a USB five-bar needs its actuators' gains: " +
+                                      std::to_string(n) + " elements (one per joint), and " +
+                                      std::to_string(n) + " of amplifier_A_per_count");
+    }
+    return {};
+  }
+  const std::string why = "one per channel, " + axes_text(n);
+  bool ok = has_length(problems, prefix + fits, constants, n, why);
+  ok = has_length(problems, prefix + "amplifier_A_per_count", amplifier, n, why) && ok;
+  if (!ok) return {};
+  std::vector<ActuatorGains> out;
+  for (int i = 0; i < n; ++i) out.push_back({constants[i], amplifier[i]});
+  return out;
+}
+
 // The planes of one side. n = 1 without planes: the one-axis wall as the plane normal (+1) at
 // its position (kept at stiffness 0, as to_axes does). n > 1 refuses the one-axis wall.
 std::vector<PlaneFixtureParams> read_planes(Problems& problems, const std::string& side,
@@ -396,6 +431,10 @@ AxesConfig read_axes(const v1::SystemConfig& c, const TeleopParams& one_axis, Pr
   t.slave_device = read_device(problems, "slave", c.slave().device(), n);
   out.master_kinematics = read_kinematics(problems, "master", c.master().device(), n);
   out.slave_kinematics = read_kinematics(problems, "slave", c.slave().device(), n);
+  out.master_actuators =
+      read_actuators(problems, "master", c.master().device(), out.master_kinematics, n);
+  out.slave_actuators =
+      read_actuators(problems, "slave", c.slave().device(), out.slave_kinematics, n);
   t.master_planes = read_planes(problems, "master", c.master(), n);
   t.slave_planes = read_planes(problems, "slave", c.slave(), n);
   t.gains = read_gains(problems, c.gains(), n);
@@ -451,6 +490,10 @@ void require_one_axis(const LoadedConfig& config) {
                  !d.damping_ns_per_m_per_axis().empty());
     n_axis_field(side + ".device.coulomb_N_per_axis", !d.coulomb_n_per_axis().empty());
     n_axis_field(side + ".device.kinematics.five_bar", d.kinematics().has_five_bar());
+    n_axis_field(side + ".device.torque_constant_N_m_per_A",
+                 !d.torque_constant_n_m_per_a().empty());
+    n_axis_field(side + ".device.force_constant_N_per_A", !d.force_constant_n_per_a().empty());
+    n_axis_field(side + ".device.amplifier_A_per_count", !d.amplifier_a_per_count().empty());
     n_axis_field(side + ".fixture.plane", !s->fixture().plane().empty());
   }
   const v1::Gains& g = c.gains();

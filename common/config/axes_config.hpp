@@ -12,6 +12,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <vector>
 
 #include "common/config/config_loader.hpp"
 #include "common/core/teleop_axes.hpp"
@@ -42,11 +43,21 @@ struct KinematicsConfig {
   double min_singularity_distance{kDefaultMinSingularityDistance};
 };
 
-// The n-axis teleoperator and what TeleopAxesParams does not hold: each side's kinematics.
+// One channel's actuator of a USB device (Device.torque_constant_N_m_per_A or
+// force_constant_N_per_A, and amplifier_A_per_count): the DAC value is u = tau / (K_T K_amp).
+struct ActuatorGains {
+  double torque_constant_per_A{0.0};  // K_T: N m/A on a five-bar joint, N/A on a Cartesian axis
+  double amplifier_A_per_count{0.0};  // K_amp
+};
+
+// The n-axis teleoperator and what TeleopAxesParams does not hold: each side's kinematics and
+// its USB actuators (n entries, or none: the paddle's DAC step on every channel).
 struct AxesConfig {
   TeleopAxesParams teleop{};
   KinematicsConfig master_kinematics{};
   KinematicsConfig slave_kinematics{};
+  std::vector<ActuatorGains> master_actuators{};
+  std::vector<ActuatorGains> slave_actuators{};
 };
 
 // v / |v| (a plane's normal, a push's direction), exact also for subnormal elements; empty when

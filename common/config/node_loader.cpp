@@ -54,6 +54,14 @@ bool is_z85_key(const std::string& key) { return key.size() == 40; }
 
 }  // namespace
 
+device::UsbDeviceConfig usb_device_config(const UsbIds& ids) {
+  device::UsbDeviceConfig usb;
+  usb.vendor_id = static_cast<std::uint16_t>(ids.vendor_id);
+  usb.product_id = static_cast<std::uint16_t>(ids.product_id);
+  usb.watchdog = std::chrono::milliseconds(static_cast<long>(std::lround(ids.watchdog_ms)));
+  return usb;
+}
+
 NodeEndpoints default_endpoints(Role role) {
   const bool master = role == Role::kMaster;
   NodeEndpoints e;
@@ -388,6 +396,23 @@ device::SimDeviceAxesConfig ideal_device(const DeviceAxesParams& d, const Kinema
   return c;
 }
 
+// One side's USB device (version 2, n channels): node.usb's link, the side's kinematics and
+// actuators.
+device::UsbDeviceAxesConfig usb_device(const UsbIds& ids, int n, const KinematicsConfig& k,
+                                       const std::vector<ActuatorGains>& actuators) {
+  device::UsbDeviceAxesConfig c;
+  c.link = usb_device_config(ids);
+  c.axes = n;
+  c.kinematics = k.kind == KinematicsConfig::Kind::kFiveBar ? device::DeviceKinematics::kFiveBar
+                                                            : device::DeviceKinematics::kCartesian;
+  c.five_bar = k.five_bar;
+  c.five_bar_home_joint_rad = k.home_joint_rad;
+  for (const ActuatorGains& g : actuators) {
+    c.actuators.push_back({g.torque_constant_per_A, g.amplifier_A_per_count});
+  }
+  return c;
+}
+
 // The master's human and the slave's environment: the scene's (as `teleopctl simulate`), else
 // a still hand and free space.
 void fill_axes_scene(const LoadedConfig& config, const AxesConfig& axes, Role role,
@@ -431,11 +456,8 @@ NodeSetup to_node_axes_setup(const LoadedConfig& config, Role role) {
   link_settings(p, c.link(), rate_hz, out.settings);
   const v1::Side& own = master ? c.master() : c.slave();
   const v1::Side& other = master ? c.slave() : c.master();
-  if (own.device().kind() == v1::USB) {
-    p.add(std::string(master ? "master" : "slave") + ".device.kind",
-          "a USB device is not supported with axes > 1 yet (use SIM)");
-  }
-  out.device_kind = device::DeviceKind::kSim;
+  out.device_kind =
+      own.device().kind() == v1::USB ? device::DeviceKind::kUsb : device::DeviceKind::kSim;
   out.endpoints = node_endpoints(own, other, role);
   process_settings(p, master ? "master" : "slave", own.node(), out);
   out.keys = node_keys(p, c.security(), own.node(), master);
@@ -459,6 +481,11 @@ NodeSetup to_node_axes_setup(const LoadedConfig& config, Role role) {
       ideal_device(master ? axes.teleop.master_device : axes.teleop.slave_device,
                    master ? axes.master_kinematics : axes.slave_kinematics, out.settings.period);
   fill_axes_scene(config, axes, role, out.sim_axes);
+  if (out.device_kind == device::DeviceKind::kUsb) {
+    out.usb_axes =
+        usb_device(out.usb, out.axes, master ? axes.master_kinematics : axes.slave_kinematics,
+                   master ? axes.master_actuators : axes.slave_actuators);
+  }
   return out;
 }
 

@@ -13,6 +13,7 @@
 #include "common/device/haptic_device.hpp"
 #include "common/device/sim_device.hpp"
 #include "common/device/sim_device_axes.hpp"
+#include "common/device/usb_device_axes.hpp"
 #include "common/node/node_core.hpp"
 #include "common/node/node_core_axes.hpp"
 #include "common/rt/periodic_loop.hpp"
@@ -62,13 +63,19 @@ struct NodeSetup {
   // the node process; reported in telemetry.
   std::optional<ConfigurationCheck> check{};
   // SystemConfig.axes. With axes > 1 (to_node_axes_setup) the node runs NodeCoreAxes on a
-  // SimDeviceAxes: axes_settings and sim_axes hold its law and device; `settings` keeps the
-  // role, period, link timing, alignment, session and fingerprint (the same values as
-  // axes_settings) and its one-axis law and `sim` are unused.
+  // SimDeviceAxes (device_kind kSim) or a UsbDeviceAxes (kUsb): axes_settings holds its law,
+  // sim_axes or usb_axes its device; `settings` keeps the role, period, link timing, alignment,
+  // session and fingerprint (the same values as axes_settings) and its one-axis law and `sim`
+  // are unused.
   int axes{1};
   node::NodeAxesSettings axes_settings{};
   device::SimDeviceAxesConfig sim_axes{};
+  device::UsbDeviceAxesConfig usb_axes{};
 };
+
+// The USB link's settings of node.usb (ids and watchdog; the paddle's scaling), for either
+// device.
+[[nodiscard]] device::UsbDeviceConfig usb_device_config(const UsbIds& ids);
 
 // Default endpoints (loopback): master state 5560, slave state 5561, commands 5562/5563,
 // telemetry 5564/5565.
@@ -88,8 +95,10 @@ struct NodeSetup {
 // node engages. Without a scene the human holds the handle without pushing (human.fixed, or
 // each axis's band middle at its lowest force level) and the slave is in free space. Link,
 // endpoints, keys, RT and process settings as to_node_setup; the fingerprint covers the n-axis
-// control fields. A USB device is refused (not supported with axes > 1 yet). Throws ConfigError
-// naming the field.
+// control fields. A side whose device.kind is USB gets usb_axes instead (device_kind kUsb):
+// version 2 with n channels, its kinematics (the five-bar's home_joint_rad at encoder count 0)
+// and actuators (torque_constant_N_m_per_A or force_constant_N_per_A, amplifier_A_per_count),
+// node.usb's ids and watchdog. Throws ConfigError naming the field.
 [[nodiscard]] NodeSetup to_node_axes_setup(const LoadedConfig& config, transport::Role role);
 
 }  // namespace teleop::config

@@ -196,6 +196,12 @@ const std::array kRules{
     NamedRule{"teleop.v1.Device.damping_Ns_per_m_per_axis",
               non_negative(kMaxDamping, "Ns/m", kDampingWhy)},
     NamedRule{"teleop.v1.Device.coulomb_N_per_axis", non_negative(kMaxForce, "N", kForceWhy)},
+    NamedRule{"teleop.v1.Device.torque_constant_N_m_per_A",
+              positive(1e3, "N m/A", "a kN m per amp is no haptic motor")},
+    NamedRule{"teleop.v1.Device.force_constant_N_per_A",
+              positive(1e4, "N/A", "10 kN per amp is no haptic drive")},
+    NamedRule{"teleop.v1.Device.amplifier_A_per_count",
+              positive(10.0, "A/count", "10 A per DAC count is no haptic amplifier")},
     NamedRule{"teleop.v1.FiveBar.base_separation_m", non_negative(kMaxPosition, "m", kPositionWhy)},
     // A link of 1 mm at least: a vanishing link makes the linkage singular (its joint moves the
     // end point by nothing) whatever its transmission angles say.

@@ -112,6 +112,11 @@ class Emulator {
   // The version the emulator reports in (that of the newest accepted command).
   [[nodiscard]] std::uint8_t report_version() const noexcept { return report_version_; }
   [[nodiscard]] const ReportPacketV2& last_report_v2() const noexcept { return report_v2_; }
+  // The DAC value on `channel` of the newest accepted version-2 command (0 before any, and after
+  // a version-1 command), as the host wrote it: before gating and the amplifier's limit.
+  [[nodiscard]] std::int16_t commanded_dac(std::size_t channel) const noexcept {
+    return channel_dac_[channel];
+  }
 
  private:
   void handle(std::span<const std::uint8_t> bytes);

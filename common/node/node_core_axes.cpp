@@ -400,7 +400,13 @@ void NodeCoreAxes::step(std::chrono::nanoseconds now, std::chrono::nanoseconds c
   const Vec peer_m = peer_positions();
   const double gap_m = have_peer_ ? side_->gap_m(own_m_, peer_m) : 0.0;
   entry_.clock = clock;
-  const CycleOutputs out = decide(now, next_command(), peer_age_ns, gap_m, device_fault, own_stall);
+  CycleOutputs out = decide(now, next_command(), peer_age_ns, gap_m, device_fault, own_stall);
+  // Faulted by the device: its own words when it has them (a USB link lost, a device of another
+  // protocol version or channel count), the newest each cycle.
+  if (out.mode == Mode::kFault && out.reason == kDeviceFaultReason && !read.ok() &&
+      read.message != nullptr && *read.message != '\0') {
+    out.reason = read.message;
+  }
   const Mode mode = out.mode;
   if (mode == Mode::kDisarmed || mode == Mode::kArmed) peer_restarted_ = false;
 

@@ -58,7 +58,7 @@ CycleOutputs NodeStateMachine::step(const CycleInputs& in) noexcept {
   if (in.command == Command::kEStop && mode_ != Mode::kFault) {
     go(Mode::kSafe, "e-stop", in.now);
   } else if ((in.device_fault || in.law_fault) && mode_ != Mode::kFault) {
-    go(Mode::kFault, in.device_fault ? "device fault" : "control law fault", in.now);
+    go(Mode::kFault, in.device_fault ? kDeviceFaultReason : "control law fault", in.now);
   } else {
     switch (mode_) {
       case Mode::kDisarmed:

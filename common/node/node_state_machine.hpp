@@ -39,6 +39,10 @@ struct StateMachineParams {
   std::chrono::nanoseconds engage_ramp{defaults::kEngageRamp};
 };
 
+// The reason the machine gives on entering kFault for a device fault (one object: a core may
+// compare the pointer and name the device's own message instead).
+inline constexpr const char* kDeviceFaultReason = "device fault";
+
 struct CycleInputs {
   std::chrono::nanoseconds now{0};
   Command command{Command::kNone};

@@ -18,6 +18,8 @@
 
 #include "common/config/parameter_space.hpp"
 #include "common/device/sim_device.hpp"
+#include "common/device/sim_device_axes.hpp"
+#include "common/device/usb_device_axes.hpp"
 #include "common/rt/cpu_dma_latency.hpp"
 #include "common/runtime/command_authority.hpp"
 #include "common/runtime/node_retune.hpp"
@@ -128,6 +130,23 @@ void fill_configuration(v1::Telemetry& t, const Core& core, const config::NodeSe
 }
 
 }  // namespace
+
+std::unique_ptr<device::HapticDeviceAxes> open_axes_device(
+    const config::NodeSetup& setup, const device::UsbDeviceAxes::TransportFactory& open_usb) {
+  std::unique_ptr<device::HapticDeviceAxes> dev;
+  if (setup.device_kind == device::DeviceKind::kUsb) {
+    dev = std::make_unique<device::UsbDeviceAxes>(setup.usb_axes, open_usb);
+  } else {
+    dev = std::make_unique<device::SimDeviceAxes>(setup.sim_axes);
+  }
+  if (const device::Status s = dev->configure(); !s.ok()) {
+    throw std::runtime_error(std::string("device: ") + s.message);
+  }
+  if (const device::Status s = dev->activate(); !s.ok()) {
+    throw std::runtime_error(std::string("device: ") + s.message);
+  }
+  return dev;
+}
 
 std::uint64_t random_session_id() {
   std::uint64_t id = 0;

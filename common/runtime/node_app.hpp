@@ -23,6 +23,7 @@
 #include "common/config/node_loader.hpp"
 #include "common/device/haptic_device.hpp"
 #include "common/device/haptic_device_axes.hpp"
+#include "common/device/usb_device_axes.hpp"
 #include "common/node/node_core.hpp"
 #include "common/node/node_core_axes.hpp"
 #include "common/rt/periodic_loop.hpp"
@@ -118,6 +119,14 @@ class NodeApp {
   std::vector<std::string> refused_{};
   std::atomic<bool> shutdown_{false};
 };
+
+// The n-axis device a setup names (docs/nodes.md "n axes live"), configured and activated:
+// a SimDeviceAxes (device_kind kSim) or a UsbDeviceAxes over open_usb (kUsb; the node: libusb,
+// the tests: the emulator's in-memory link). Throws std::runtime_error "device: ..." with the
+// device's own message when it cannot configure or activate.
+[[nodiscard]] std::unique_ptr<device::HapticDeviceAxes> open_axes_device(
+    const config::NodeSetup& setup,
+    const device::UsbDeviceAxes::TransportFactory& open_usb = device::open_usb_transport);
 
 // main() of teleop-master / teleop-slave: `NAME CONFIG [--set PATH=VALUE]...`. Runs until
 // SIGINT/SIGTERM or a SHUTDOWN command; returns the exit code (1: configuration, device or

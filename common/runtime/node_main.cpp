@@ -39,11 +39,8 @@ void usage(std::ostream& os, const char* name) {
 
 // Builds the device the configuration names; configure() and activate() errors name it.
 std::unique_ptr<device::HapticDevice> open_device(const config::NodeSetup& setup) {
-  device::UsbDeviceConfig usb;
-  usb.vendor_id = static_cast<std::uint16_t>(setup.usb.vendor_id);
-  usb.product_id = static_cast<std::uint16_t>(setup.usb.product_id);
-  usb.watchdog = std::chrono::milliseconds(static_cast<long>(std::lround(setup.usb.watchdog_ms)));
-  device::MakeDeviceResult made = device::make_device(setup.device_kind, setup.sim, usb);
+  device::MakeDeviceResult made =
+      device::make_device(setup.device_kind, setup.sim, config::usb_device_config(setup.usb));
   if (!made.status.ok() || !made.device) {
     throw std::runtime_error(std::string("device: ") + made.status.message);
   }
@@ -85,18 +82,6 @@ void apply_check(const config::ConfigurationCheck& c, config::NodeSetup& setup) 
 
 void apply_configuration_check(const config::CompiledSystem& system, config::NodeSetup& setup) {
   apply_check(config::check_configuration(system.teleop(), system.allow_unstable()), setup);
-}
-
-// n axes (docs/nodes.md "n axes live"): the simulated n-axis device, configured and activated.
-std::unique_ptr<device::HapticDeviceAxes> open_axes_device(const config::NodeSetup& setup) {
-  auto dev = std::make_unique<device::SimDeviceAxes>(setup.sim_axes);
-  if (const device::Status s = dev->configure(); !s.ok()) {
-    throw std::runtime_error(std::string("device: ") + s.message);
-  }
-  if (const device::Status s = dev->activate(); !s.ok()) {
-    throw std::runtime_error(std::string("device: ") + s.message);
-  }
-  return dev;
 }
 
 // A configuration with axes > 1: its setup and the n-axis node, after its own analysis of the

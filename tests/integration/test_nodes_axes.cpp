@@ -275,5 +275,21 @@ TEST(NodesAxes, AConfigurationItsOwnAnalysisCallsUnstableIsRefusedAtArmUnlessAll
   }
 }
 
+// A USB master on three axes (issue 18 "Devices"): the process builds the n-axis USB device and,
+// with none on this machine, exits naming the ids it looked for, as the one-axis node does.
+TEST(NodesAxes, AUsbMasterWithNoDeviceExitsNamingTheExpectedVendorAndProduct) {
+  TempDir dir;
+  Ports ports;
+  const auto config = dir.write("cartesian3.textproto", cartesian3_config(ports));
+  Process master(MASTER_BIN, {config.string(), "--set", "master.device.kind=USB"},
+                 dir.path() / "master.log");
+  EXPECT_EQ(master.wait(), 1);
+  EXPECT_NE(master.log().find("3 task-space axes"), std::string::npos) << master.log();
+  EXPECT_NE(master.log().find("no USB haptic device attached: expected vendor 0x1209 product "
+                              "0x7E1E"),
+            std::string::npos)
+      << master.log();
+}
+
 }  // namespace
 }  // namespace teleop::test

@@ -59,13 +59,17 @@ TEST(NodeAxesSetup, Cartesian3GivesBothNodesTheFileLawDevicesAndOneFingerprint) 
             m.settings.config_fingerprint);
 }
 
-TEST(NodeAxesSetup, AUsbDeviceIsRefusedByName) {
-  try {
-    (void)setup_of(Role::kSlave, {"slave.device.kind=USB"});
-    FAIL() << "no error";
-  } catch (const config::ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("slave.device.kind"), std::string::npos) << e.what();
-  }
+// A USB slave (issue 18 "Devices"): the n-axis USB device, version 2 with one channel per axis;
+// without actuator gains a Cartesian device keeps the paddle's DAC step on every channel.
+TEST(NodeAxesSetup, AUsbSlaveGetsTheNAxisUsbDevice) {
+  const config::NodeSetup s = setup_of(Role::kSlave, {"slave.device.kind=USB"});
+  EXPECT_EQ(s.device_kind, device::DeviceKind::kUsb);
+  EXPECT_EQ(s.usb_axes.axes, 3);
+  EXPECT_EQ(s.usb_axes.kinematics, device::DeviceKinematics::kCartesian);
+  EXPECT_TRUE(s.usb_axes.actuators.empty());
+  EXPECT_EQ(s.usb_axes.link.vendor_id, 0x1209);
+  EXPECT_EQ(setup_of(Role::kMaster, {"slave.device.kind=USB"}).device_kind,
+            device::DeviceKind::kSim);
 }
 
 TEST(NodeCoreAxesLive, PublishesAHeartbeatPerCycleAndLoopStatisticsEvery50Cycles) {
