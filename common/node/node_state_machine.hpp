@@ -41,7 +41,11 @@ struct StateMachineParams {
 
 // The reason the machine gives on entering kFault for a device fault (one object: a core may
 // compare the pointer and name the device's own message instead).
-inline constexpr const char* kDeviceFaultReason = "device fault";
+// An array, not a pointer to a literal: the address is the one inline object's in every
+// translation unit. A `const char*` initialised with "device fault" is folded to each unit's own
+// copy of the literal, equal only where the linker merges strings (not under ASan, which pads
+// each literal: the n-axis core's pointer comparison failed there).
+inline constexpr char kDeviceFaultReason[] = "device fault";
 
 struct CycleInputs {
   std::chrono::nanoseconds now{0};
