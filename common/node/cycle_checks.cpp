@@ -1,6 +1,7 @@
 #include "common/node/cycle_checks.hpp"
 
 #include <algorithm>
+#include <optional>
 
 #include "common/node/node_core.hpp"
 
@@ -26,6 +27,19 @@ const char* StallCheck::check(std::chrono::nanoseconds clock, std::chrono::nanos
   have_clock_ = true;
   last_clock_ns_ = clock.count();
   return own_stall;
+}
+
+Command take_command(rt::SpscQueue<Command, 64>& queue, std::atomic<std::uint64_t>& applied,
+                     bool takes_clutch) noexcept {
+  Command command = Command::kNone;
+  if (const std::optional<Command> c = queue.try_pop()) {
+    command = *c;
+    applied.fetch_add(1, std::memory_order_acq_rel);
+  }
+  if (!takes_clutch && (command == Command::kClutch || command == Command::kUnclutch)) {
+    command = Command::kNone;
+  }
+  return command;
 }
 
 std::int64_t peer_state_age_ns(bool have_peer, std::chrono::nanoseconds clock,

@@ -1,16 +1,20 @@
 // What NodeCore and NodeCoreAxes check and report the same way on every cycle (one helper both
 // cores call, so the one-axis and the n-axis node cannot drift apart):
 //  - StallCheck: an own stall, measured on the clock read on waking (node_core.hpp "Time");
+//  - take_command: the operator's command of the cycle;
 //  - peer_state_age_ns: how old the newest peer state is on that clock;
 //  - note_echo: the round trip a peer state's echo measures;
 //  - fill_loop_snapshot: the loop and link statistics the cores publish every kStatsEvery cycles.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 
 #include "common/core/rt_safe.hpp"
+#include "common/node/node_state_machine.hpp"
 #include "common/rt/loop_timing.hpp"
+#include "common/rt/spsc_queue.hpp"
 #include "common/rt/windowed_histogram.hpp"
 #include "common/transport/node_state_codec.hpp"
 
@@ -34,6 +38,12 @@ class StallCheck {
   std::int64_t last_clock_ns_{0};
   std::int64_t overrun_debt_ns_{0};
 };
+
+// The operator's command of this cycle (one per cycle, in order, counted in `applied`); the
+// clutch only on the side that takes it (the master).
+TELEOP_RT [[nodiscard]] Command take_command(rt::SpscQueue<Command, 64>& queue,
+                                             std::atomic<std::uint64_t>& applied,
+                                             bool takes_clutch) noexcept;
 
 // The newest peer state's age at `clock` (0 without one; never negative).
 TELEOP_RT [[nodiscard]] std::int64_t peer_state_age_ns(bool have_peer,

@@ -219,15 +219,7 @@ void NodeCore::receive_peer(std::chrono::nanoseconds now) noexcept {
 // The operator's command of this cycle (one per cycle, in order); the clutch only on the side
 // that takes it.
 Command NodeCore::next_command() noexcept {
-  Command command = Command::kNone;
-  if (const std::optional<Command> c = commands_in_.try_pop()) {
-    command = *c;
-    commands_applied_.fetch_add(1, std::memory_order_acq_rel);
-  }
-  if (!side_->takes_clutch() && (command == Command::kClutch || command == Command::kUnclutch)) {
-    command = Command::kNone;
-  }
-  return command;
+  return take_command(commands_in_, commands_applied_, side_->takes_clutch());
 }
 
 // The state machine's step on this cycle's inputs.

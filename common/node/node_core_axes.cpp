@@ -515,15 +515,7 @@ void NodeCoreAxes::receive_peer(std::chrono::nanoseconds now) noexcept {
 }
 
 Command NodeCoreAxes::next_command() noexcept {
-  Command command = Command::kNone;
-  if (const std::optional<Command> c = commands_in_.try_pop()) {
-    command = *c;
-    commands_applied_.fetch_add(1, std::memory_order_acq_rel);
-  }
-  if (!side_->is_master() && (command == Command::kClutch || command == Command::kUnclutch)) {
-    command = Command::kNone;
-  }
-  return command;
+  return take_command(commands_in_, commands_applied_, side_->is_master());
 }
 
 CycleOutputs NodeCoreAxes::decide(std::chrono::nanoseconds now, Command command,
