@@ -700,6 +700,15 @@ int run_launch(const std::vector<std::string>& args, std::ostream& out, std::ost
 
 pid_t spawn_process(const std::string& binary, const std::vector<std::string>& args) {
   const pid_t parent = ::getpid();
+  // The argument vector is built here, before the fork: the child of a process with threads
+  // (the ZeroMQ context's, the telemetry readers') may call only async-signal-safe functions
+  // until its exec, and an allocation there can wait forever on a lock another thread held
+  // at the fork.
+  std::vector<char*> argv;
+  argv.reserve(args.size() + 2);
+  argv.push_back(const_cast<char*>(binary.c_str()));
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
   // Ctrl-C and the stop signals are held across the fork: a child that took one before its
   // exec ran launch's own handler (which only sets a flag), went on to start the node, and
   // nobody stopped that node (a launch refused at once hung in stop_all).
@@ -723,11 +732,7 @@ pid_t spawn_process(const std::string& binary, const std::vector<std::string>& a
     ::prctl(PR_SET_PDEATHSIG, SIGTERM);
     if (::getppid() != parent) ::_exit(127);
     (void)::pthread_sigmask(SIG_SETMASK, &before, nullptr);
-    std::vector<char*> argv;
-    argv.push_back(const_cast<char*>(binary.c_str()));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    ::execv(binary.c_str(), argv.data());
+    ::execv(argv[0], argv.data());
     ::_exit(127);
   }
   (void)::pthread_sigmask(SIG_SETMASK, &before, nullptr);

@@ -146,16 +146,22 @@ class Process {
   Process(const std::string& binary, const std::vector<std::string>& args,
           const std::filesystem::path& log)
       : log_(log) {
+    // Everything the child needs is made before the fork: this process has threads (ZeroMQ's,
+    // the telemetry taps'), so the child may call only async-signal-safe functions until its
+    // exec. An allocation there can wait forever on a lock another thread held at the fork
+    // (ASan's allocator has no fork handler): a supervisor that never started, its log empty.
+    std::vector<char*> argv;
+    argv.reserve(args.size() + 2);
+    argv.push_back(const_cast<char*>(binary.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    const std::string log_path = log.string();
     pid_ = ::fork();
     if (pid_ == 0) {
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
       ::dup2(fd, 1);
       ::dup2(fd, 2);
-      std::vector<char*> argv;
-      argv.push_back(const_cast<char*>(binary.c_str()));
-      for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-      argv.push_back(nullptr);
-      ::execv(binary.c_str(), argv.data());
+      ::execv(argv[0], argv.data());
       ::_exit(127);
     }
   }

@@ -270,14 +270,17 @@ TEST(ServiceNotify, SupervisorReadyOnceBoundWatchdogStopping) {
 // Exit status of `args` run to completion, killed after `bound` (against a hang: nullopt).
 std::optional<int> run_bounded(const std::vector<std::string>& args, const fs::path& log,
                                std::chrono::milliseconds bound) {
+  // Built before the fork (see Process in node_harness.hpp): only async-signal-safe calls in
+  // the child of a process with threads.
+  std::vector<char*> argv;
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const std::string log_path = log.string();
   const pid_t pid = ::fork();
   if (pid == 0) {
-    const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
     ::dup2(fd, 1);
     ::dup2(fd, 2);
-    std::vector<char*> argv;
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
     ::execv(argv[0], argv.data());
     ::_exit(127);
   }
