@@ -13,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/config/axes_config.hpp"
 #include "common/config/control_fingerprint.hpp"
 #include "common/config/parameter_space.hpp"
 #include "common/telemetry/cycle_codec.hpp"
@@ -423,6 +424,69 @@ void SupervisorCore::apply_axes_change(const AxesChange& change, const AxesDecis
   reply.set_change_id(id);
   reply.set_apply_at_master_sequence(at);
   publish_axes_report("parameter change " + std::to_string(id) + ": " + who);
+}
+
+// A supervisor (re)started on running n-axis nodes, as for one axis (adopt_parameters_in_force):
+// a guarded change an earlier supervisor made (a change number above this one's) is adopted, its
+// gain matrices and plane stiffnesses validated first by the rules a RETUNE meets
+// (config::check_parameter_update_axes). Values of another shape, or that a RETUNE could not
+// carry, are not adopted: the audit then finds them unapproved (CRITICAL, both nodes e-stopped).
+void SupervisorCore::adopt_axes_parameters_in_force(const v1::Telemetry& t) {
+  const v1::ActiveParameters& a = t.active();
+  if (!t.has_active() || a.change_id() <= change_id_) {
+    const v1::NodeMode m = t.mode();
+    if (m == v1::ALIGNING || m == v1::ENGAGED || m == v1::CLUTCHED) {
+      alarm(v1::Alarm::WARNING, "supervisor", "system",
+            fmt::format("started with the nodes already {} (configured parameters in force)",
+                        v1::NodeMode_Name(t.mode())),
+            {});
+    }
+    return;
+  }
+  TeleopAxesParams p = axes_->params;
+  v1::ParameterUpdate in_force;
+  in_force.set_change_id(a.change_id());
+  in_force.set_axes(a.axes());
+  *in_force.mutable_gains() = a.gains();
+  *in_force.mutable_master_plane_stiffness_n_per_m() = a.master_plane_stiffness_n_per_m();
+  *in_force.mutable_slave_plane_stiffness_n_per_m() = a.slave_plane_stiffness_n_per_m();
+  std::string why = config::check_parameter_update_axes(in_force, p.axes,
+                                                        static_cast<int>(p.master_planes.size()),
+                                                        static_cast<int>(p.slave_planes.size()));
+  if (why.empty()) p.gains = config::gains_axes_of(a.gains(), p.axes, why);
+  if (!why.empty()) {
+    spdlog::error("change {} in force on the nodes not adopted: {}", a.change_id(), why);
+    return;
+  }
+  for (int i = 0; i < a.master_plane_stiffness_n_per_m_size(); ++i) {
+    p.master_planes[static_cast<std::size_t>(i)].stiffness_N_per_m =
+        a.master_plane_stiffness_n_per_m(i);
+  }
+  for (int i = 0; i < a.slave_plane_stiffness_n_per_m_size(); ++i) {
+    p.slave_planes[static_cast<std::size_t>(i)].stiffness_N_per_m =
+        a.slave_plane_stiffness_n_per_m(i);
+  }
+  change_id_ = a.change_id();
+  last_sent_change_id_ = std::max(last_sent_change_id_, change_id_);
+  audit_.adopt(change_id_, approved_axes(p.axes, a.gains(), a.master_plane_stiffness_n_per_m(),
+                                         a.slave_plane_stiffness_n_per_m()));
+  axes_->params.gains = p.gains;
+  axes_->params.master_planes = p.master_planes;
+  axes_->params.slave_planes = p.slave_planes;
+  axes_->assessed.clear();
+  std::string planes;
+  for (const auto& [side, list] :
+       {std::pair{"master", &p.master_planes}, std::pair{"slave", &p.slave_planes}}) {
+    for (std::size_t i = 0; i < list->size(); ++i) {
+      planes += fmt::format(", {} plane {} {:.0f} N/m", side, i, (*list)[i].stiffness_N_per_m);
+    }
+  }
+  alarm(v1::Alarm::WARNING, "supervisor", "system",
+        fmt::format("started with the nodes already {}: change {} in force, adopted ({} axes{})",
+                    v1::NodeMode_Name(t.mode()), a.change_id(), p.axes, planes),
+        {{"change_id", static_cast<double>(a.change_id()), ""}});
+  publish_axes_report(fmt::format("adopted the parameters in force (change {})", a.change_id()));
+  publish_config();
 }
 
 // Several axes: the supervisor computes no fingerprint of an n-axis file yet (its own is the

@@ -425,12 +425,15 @@ void SupervisorCore::on_telemetry(Side side, const v1::Telemetry& t, std::int64_
           fmt::format("went {} ({})", v1::NodeMode_Name(t.mode()), t.mode_reason()), {});
   }
   n.mode = t.mode();
-  // Several axes: a change found in force at start is not adopted (a supervisor restarted on
-  // running n-axis nodes finds it unapproved); the audit covers every gain-matrix element and
-  // plane stiffness (ActiveParameters.axes).
+  // Several axes: every gain-matrix element and plane stiffness (ActiveParameters.axes) is
+  // adopted and audited.
   if (is_master && !heard_master_) {
     heard_master_ = true;
-    if (!axes_) adopt_parameters_in_force(t);
+    if (axes_) {
+      adopt_axes_parameters_in_force(t);
+    } else {
+      adopt_parameters_in_force(t);
+    }
   }
   n.last = t;
   n.last_received_ns = now_ns;

@@ -290,6 +290,7 @@ class SupervisorCore {
                                                 std::uint64_t at) const;
   [[nodiscard]] std::string axes_configuration_mismatch() const;
   void adopt_parameters_in_force(const v1::Telemetry& t);
+  void adopt_axes_parameters_in_force(const v1::Telemetry& t);
   void handle_request(const v1::SupervisorRequest& req, v1::SupervisorReply& reply);
   [[nodiscard]] std::string read_only_refusal(const v1::SupervisorRequest& req,
                                               const std::string& key) const;

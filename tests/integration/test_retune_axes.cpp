@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <csignal>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -206,6 +208,85 @@ TEST(RetuneAxes, AnNAxisRetuneFromAnotherIdentityIsRefusedAndNothingChanges) {
     ASSERT_EQ(a.slave_plane_stiffness_n_per_m_size(), 2);
     EXPECT_EQ(a.slave_plane_stiffness_n_per_m(1), 1000.0);
     for (const v1::CycleRecord& cyc : tap->cycles()) ASSERT_EQ(cyc.parameter_change_id(), 0U);
+  }
+}
+
+// A supervisor killed (kill -9) after a guarded change and started again on the running nodes
+// adopts the change in force, as for one axis: the nodes stay engaged (no e-stop in their own
+// cycles from the restart on), its log says change 1 was adopted, and the next `teleopctl set`
+// is change 2.
+TEST(RetuneAxes, ASupervisorRestartedAfterAChangeAdoptsItAndTheNodesStayEngaged) {
+  TempDir dir;
+  Ports ports;
+  const int report = free_port();
+  const int request = free_port();
+  const auto config =
+      dir.write("cartesian3.textproto",
+                system_text(ports, "supervisor { report_endpoint: \"" + tcp(report) +
+                                       "\" request_endpoint: \"" + tcp(request) +
+                                       "\" record: false change_ramp_ms: 50 }\n"
+                                       "security { allow_unauthenticated_retune: true }\n"));
+  zmq::context_t ctx(1);
+  TelemetryTap mt(ctx, tcp(ports.master_telemetry));
+  TelemetryTap st(ctx, tcp(ports.slave_telemetry));
+  auto first = std::make_unique<Process>(SUPERVISOR_BIN, std::vector<std::string>{config.string()},
+                                         dir.path() / "supervisor1.log");
+  Process master(MASTER_BIN, {config.string()}, dir.path() / "master.log");
+  Process slave(SLAVE_BIN, {config.string()}, dir.path() / "slave.log");
+  std::unique_ptr<Process> second;
+  auto logs = [&] {
+    return "--- master\n" + master.log() + "--- slave\n" + slave.log() + "--- supervisor\n" +
+           first->log() + "--- restarted supervisor\n" + (second ? second->log() : "");
+  };
+  ASSERT_TRUE(mt.wait_for(linked)) << logs();
+  ASSERT_TRUE(st.wait_for(linked)) << logs();
+  ASSERT_NO_FATAL_FAILURE(arm_and_engage(ctx, ports));
+  ASSERT_TRUE(st.wait_for_mode(v1::ENGAGED)) << logs();
+  const CliResult set = teleopctl("set slave.planes[1].stiffness_N_per_m=500 --supervisor " +
+                                  tcp(request) + " --timeout-ms 5000");
+  ASSERT_EQ(set.exit_code, 0) << set.out << logs();
+  for (const TelemetryTap* tap : {&mt, &st}) {
+    ASSERT_TRUE(tap->wait_for(
+        [](const v1::Telemetry& t) {
+          return t.active().change_id() == 1 && t.active().ramp_progress() == 1.0;
+        },
+        std::chrono::seconds(30)))
+        << logs();
+  }
+  first->signal(SIGKILL);
+  (void)first->wait();
+  const std::size_t m0 = mt.cycles().size();
+  const std::size_t s0 = st.cycles().size();
+  second = std::make_unique<Process>(SUPERVISOR_BIN, std::vector<std::string>{config.string()},
+                                     dir.path() / "supervisor2.log");
+  ASSERT_TRUE(eventually([&] {
+    const auto status = supervisor_status(ctx, request);
+    return status && status->master_alive() && status->slave_alive();
+  })) << logs();
+  const std::uint64_t s1 = newest_master_sequence(st);
+  ASSERT_TRUE(st.wait_for([&](const v1::Telemetry&) {
+    return newest_master_sequence(st) > s1 + 300;
+  })) << logs();
+  EXPECT_NE(second->log().find("change 1 in force, adopted"), std::string::npos) << logs();
+  EXPECT_EQ(second->log().find("unapproved"), std::string::npos) << logs();
+  for (const auto& [tap, from] : {std::pair{&mt, m0}, std::pair{&st, s0}}) {
+    const std::vector<v1::CycleRecord> cycles = tap->cycles();
+    for (std::size_t i = from; i < cycles.size(); ++i) {
+      ASSERT_EQ(cycles[i].mode(), v1::ENGAGED) << "cycle " << cycles[i].sequence() << logs();
+    }
+  }
+  const CliResult again = teleopctl("set slave.planes[1].stiffness_N_per_m=600 --supervisor " +
+                                    tcp(request) + " --timeout-ms 5000");
+  ASSERT_EQ(again.exit_code, 0) << again.out << logs();
+  for (const TelemetryTap* tap : {&mt, &st}) {
+    ASSERT_TRUE(tap->wait_for(
+        [](const v1::Telemetry& t) {
+          return t.active().change_id() == 2 && t.active().ramp_progress() == 1.0 &&
+                 t.active().slave_plane_stiffness_n_per_m_size() == 2 &&
+                 t.active().slave_plane_stiffness_n_per_m(1) == 600.0;
+        },
+        std::chrono::seconds(30)))
+        << logs();
   }
 }
 

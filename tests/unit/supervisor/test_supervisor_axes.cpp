@@ -736,6 +736,32 @@ TEST(SupervisorAxes, AMalformedNAxisRequestIsRefusedAtOnceNamingTheField) {
   EXPECT_TRUE(ports.sent.empty());
 }
 
+// A node's telemetry (session `session`) with paddles3's values in force as its ActiveParameters
+// report them: change `change_id`, the gains 600 I (kpm, kps), 2 I (kdm, kds) as 3 x 3 row-major
+// matrices, the slave plane at `slave_k`.
+v1::Telemetry active_paddles3(std::uint64_t session, std::uint64_t change_id, double slave_k,
+                              double progress) {
+  v1::Telemetry t;
+  t.set_session_id(session);
+  t.set_mode(v1::ENGAGED);
+  v1::ActiveParameters& a = *t.mutable_active();
+  a.set_change_id(change_id);
+  a.set_axes(3);
+  for (int i = 0; i < 9; ++i) {
+    const double d = i % 4 == 0 ? 1.0 : 0.0;
+    a.mutable_gains()->add_kpm_matrix(600.0 * d);
+    a.mutable_gains()->add_kps_matrix(600.0 * d);
+    a.mutable_gains()->add_kdm_matrix(2.0 * d);
+    a.mutable_gains()->add_kds_matrix(2.0 * d);
+    a.mutable_gains()->add_kvm_matrix(0.0);
+    a.mutable_gains()->add_kvs_matrix(0.0);
+    a.mutable_gains()->add_kfm_matrix(0.0);
+  }
+  a.add_slave_plane_stiffness_n_per_m(slave_k);
+  a.set_ramp_progress(progress);
+  return t;
+}
+
 // The audit per element: values the supervisor approved (the file's, a ramp between approved
 // ones) raise nothing; a plane stiffness nobody approved is a CRITICAL alarm naming that plane,
 // and both nodes are e-stopped.
@@ -746,24 +772,7 @@ TEST(SupervisorAxes, AnUnapprovedPlaneStiffnessInForceIsCriticalAndEStopsBothNod
   run(core, ports, kT0, 100 * kMs, quiet, quiet);
   std::int64_t now = kT0 + 100 * kMs;
   auto active = [](double slave_k, double progress) {
-    v1::Telemetry t;
-    t.set_session_id(22);
-    t.set_mode(v1::ENGAGED);
-    v1::ActiveParameters& a = *t.mutable_active();
-    a.set_axes(3);
-    for (int i = 0; i < 9; ++i) {
-      const double d = i % 4 == 0 ? 1.0 : 0.0;
-      a.mutable_gains()->add_kpm_matrix(600.0 * d);
-      a.mutable_gains()->add_kps_matrix(600.0 * d);
-      a.mutable_gains()->add_kdm_matrix(2.0 * d);
-      a.mutable_gains()->add_kds_matrix(2.0 * d);
-      a.mutable_gains()->add_kvm_matrix(0.0);
-      a.mutable_gains()->add_kvs_matrix(0.0);
-      a.mutable_gains()->add_kfm_matrix(0.0);
-    }
-    a.add_slave_plane_stiffness_n_per_m(slave_k);
-    a.set_ramp_progress(progress);
-    return t;
+    return active_paddles3(22, 0, slave_k, progress);
   };
   core.on_telemetry(Side::kSlave, active(1500.0, 1.0), now);  // the file's values
   EXPECT_TRUE(ports.alarms_of("unapproved_parameters").empty());
@@ -776,6 +785,62 @@ TEST(SupervisorAxes, AnUnapprovedPlaneStiffnessInForceIsCriticalAndEStopsBothNod
   EXPECT_NE(a[0].message().find("slave.planes[0].stiffness_N_per_m 3000"), std::string::npos)
       << a[0].message();
   EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 2U);
+}
+
+// A supervisor restarted on running n-axis nodes, as for one axis: a guarded change an earlier
+// supervisor made (change 4: the slave plane at 800 N/m, not the file's 1500) is adopted, not
+// e-stopped: no unapproved alarm, a WARNING saying so, the configuration in force carries 800
+// N/m, and the next change is numbered 5 and goes out.
+TEST(SupervisorAxes, ARestartedSupervisorAdoptsTheNAxisChangeInForceAndNumbersTheNextAfterIt) {
+  FakePorts ports;
+  SupervisorCore core(paddles3(), {}, ports);
+  core.start(kT0);
+  std::int64_t now = kT0 + kMs;
+  core.on_telemetry(Side::kMaster, active_paddles3(11, 4, 800.0, 1.0), now);
+  core.on_telemetry(Side::kSlave, active_paddles3(22, 4, 800.0, 1.0), now);
+  EXPECT_TRUE(ports.alarms_of("unapproved_parameters").empty());
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 0U);
+  bool said = false;
+  for (const v1::Alarm& a : ports.alarms_of("supervisor")) {
+    said = said || a.message().find("change 4 in force, adopted") != std::string::npos;
+  }
+  EXPECT_TRUE(said);
+  EXPECT_EQ(core.config_in_force().slave().fixture().plane(0).stiffness_n_per_m(), 800.0);
+  ASSERT_FALSE(ports.reports.empty());
+  ASSERT_EQ(ports.reports.back().planes_size(), 1);
+  EXPECT_EQ(ports.reports.back().planes(0).stiffness_n_per_m(), 800.0);
+  // The nodes keep reporting change 4 while the next change is made.
+  run(core, ports, now, 100 * kMs, quiet, quiet, {});
+  now += 100 * kMs;
+  core.on_telemetry(Side::kMaster, active_paddles3(11, 4, 800.0, 1.0), now);
+  core.on_telemetry(Side::kSlave, active_paddles3(22, 4, 800.0, 1.0), now);
+  const v1::SupervisorReply reply = core.on_request(plane_request(700.0), "", now);
+  ASSERT_TRUE(reply.change().pending()) << reply.change().reason();
+  const v1::ParameterChangeReply decided = await_decision(core, now, reply.change().request_id());
+  ASSERT_TRUE(decided.accepted()) << decided.reason();
+  EXPECT_EQ(decided.change_id(), 5U);
+  EXPECT_TRUE(ports.alarms_of("unapproved_parameters").empty());
+}
+
+// What a RETUNE could not carry is not adopted, whatever change number it claims: a NaN plane
+// stiffness, an indefinite gain matrix (kps 600 I with -700 at (0, 1) and (1, 0): eigenvalue
+// -100), a plane too many. Each is found unapproved by the audit: CRITICAL, both nodes e-stopped.
+TEST(SupervisorAxes, AChangeInForceThatARetuneCouldNotCarryIsNotAdoptedButEStopped) {
+  for (int c = 0; c < 3; ++c) {
+    FakePorts ports;
+    SupervisorCore core(paddles3(), {}, ports);
+    core.start(kT0);
+    v1::Telemetry t = active_paddles3(11, 4, c == 0 ? std::nan("") : 800.0, 1.0);
+    if (c == 1) {
+      t.mutable_active()->mutable_gains()->set_kps_matrix(1, -700.0);
+      t.mutable_active()->mutable_gains()->set_kps_matrix(3, -700.0);
+    }
+    if (c == 2) t.mutable_active()->add_slave_plane_stiffness_n_per_m(800.0);
+    core.on_telemetry(Side::kMaster, t, kT0 + kMs);
+    EXPECT_EQ(ports.alarms_of("unapproved_parameters").size(), 1U) << c;
+    EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 2U) << c;
+    EXPECT_EQ(core.config_in_force().slave().fixture().plane(0).stiffness_n_per_m(), 1500.0) << c;
+  }
 }
 
 }  // namespace
