@@ -434,6 +434,32 @@ void fill_axes_scene(const LoadedConfig& config, const AxesConfig& axes, Role ro
 
 }  // namespace
 
+namespace {
+
+// The n-axis file's node rate, checked (1 Hz to 100 kHz).
+double axes_node_rate_hz(const LoadedConfig& config, const AxesConfig& axes) {
+  const double rate_hz = axes.teleop.sample_rate_hz;
+  if (!(rate_hz >= 1.0 && rate_hz <= 100000.0)) {
+    throw ConfigError(config.source_name +
+                      ": sample_rate_hz: a node runs at 1 Hz to 100 kHz, got " +
+                      std::to_string(rate_hz));
+  }
+  return rate_hz;
+}
+
+}  // namespace
+
+std::uint64_t axes_control_fingerprint(const LoadedConfig& config) {
+  const AxesConfig axes = to_axes_config(config);
+  const double rate_hz = axes_node_rate_hz(config, axes);
+  node::NodeSettings settings;
+  Problems p(config);
+  link_settings(p, config.config.link(), rate_hz, settings);
+  p.throw_if_any();
+  return fingerprint(
+      axes_control_fields(axes, settings, config.config.experiment().allow_unstable()));
+}
+
 NodeSetup to_node_axes_setup(const LoadedConfig& config, Role role) {
   if (role != Role::kMaster && role != Role::kSlave) {
     throw ConfigError("node role must be master or slave");
@@ -441,12 +467,7 @@ NodeSetup to_node_axes_setup(const LoadedConfig& config, Role role) {
   const AxesConfig axes = to_axes_config(config);  // validates, names every field
   const bool master = role == Role::kMaster;
   const v1::SystemConfig& c = config.config;
-  const double rate_hz = axes.teleop.sample_rate_hz;
-  if (!(rate_hz >= 1.0 && rate_hz <= 100000.0)) {
-    throw ConfigError(config.source_name +
-                      ": sample_rate_hz: a node runs at 1 Hz to 100 kHz, got " +
-                      std::to_string(rate_hz));
-  }
+  const double rate_hz = axes_node_rate_hz(config, axes);
   NodeSetup out;
   out.axes = axes.teleop.axes;
   out.settings.role = role;

@@ -101,4 +101,10 @@ struct NodeSetup {
 // node.usb's ids and watchdog. Throws ConfigError naming the field.
 [[nodiscard]] NodeSetup to_node_axes_setup(const LoadedConfig& config, transport::Role role);
 
+// The configuration fingerprint both nodes of an n-axis file compute (to_node_axes_setup's
+// settings.config_fingerprint: the n-axis control fields and the link timing), without their
+// devices, endpoints or keys: what the supervisor compares each node's with. Throws ConfigError
+// naming the field.
+[[nodiscard]] std::uint64_t axes_control_fingerprint(const LoadedConfig& config);
+
 }  // namespace teleop::config

@@ -9,6 +9,7 @@
 
 #include "common/config/axes_config.hpp"
 #include "common/config/control_fingerprint.hpp"
+#include "common/config/node_loader.hpp"
 #include "common/core/version.hpp"
 #include "supervisor/core/axes_supervision.hpp"
 
@@ -89,10 +90,10 @@ std::map<std::string, std::string> teleop_metadata(const config::LoadedConfig& c
   m["version"] = std::string(version());
   m["host"] = host_name();
   m["config_file"] = config.source_name;
-  // Several axes: no fingerprint of an n-axis file yet (control_fingerprint is one-axis); the
-  // axes say which form the session's cycles take.
+  // Several axes: the fingerprint both nodes compute; the axes say which form the session's
+  // cycles take.
   if (several_axes(config)) {
-    m["config_fingerprint"] = "";
+    m["config_fingerprint"] = config::fingerprint_hex(config::axes_control_fingerprint(config));
     m["axes"] = std::to_string(config::configured_axes(config.config));
   } else {
     m["config_fingerprint"] = config::fingerprint_hex(config::control_fingerprint(config));

@@ -489,17 +489,24 @@ void SupervisorCore::adopt_axes_parameters_in_force(const v1::Telemetry& t) {
   publish_config();
 }
 
-// Several axes: the supervisor computes no fingerprint of an n-axis file yet (its own is the
-// one-axis view's); the nodes' are compared with each other.
+// Several axes: each node's fingerprint against the one both nodes of this file compute
+// (config::axes_control_fingerprint), as for one axis; the gains and plane stiffnesses in force
+// are the audit's (unapproved values e-stop), so a difference is named by the fingerprints.
 std::string SupervisorCore::axes_configuration_mismatch() const {
-  if (!master_.last || !slave_.last) return {};
-  const std::uint64_t m = master_.last->config_fingerprint();
-  const std::uint64_t s = slave_.last->config_fingerprint();
-  if (m == s) return {};
-  return fmt::format(
-      "configuration fingerprints differ: master {}, slave {} (with {} axes the supervisor "
-      "compares the nodes with each other)",
-      config::fingerprint_hex(m), config::fingerprint_hex(s), axes_->params.axes);
+  const std::uint64_t own = axes_->fingerprint;
+  const bool master_differs = master_.last && master_.last->config_fingerprint() != own;
+  const bool slave_differs = slave_.last && slave_.last->config_fingerprint() != own;
+  if (!master_differs && !slave_differs) return {};
+  std::string m = "configuration fingerprints differ: supervisor " + config::fingerprint_hex(own);
+  for (const NodeView* n : {&master_, &slave_}) {
+    if (!n->last) continue;
+    const std::uint64_t f = n->last->config_fingerprint();
+    m += ", " + n->name + " " + (f == 0 ? std::string("none") : config::fingerprint_hex(f));
+  }
+  return m + fmt::format(
+                 " ({} axes: the masses, damping, kinematics, planes, gains, scaling, filter, "
+                 "round trip, human, analysis, link timing or the experiment flag differ)",
+                 axes_->params.axes);
 }
 
 }  // namespace teleop::supervisor

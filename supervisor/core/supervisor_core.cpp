@@ -7,6 +7,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "common/config/node_loader.hpp"
 #include "common/config/parameter_space.hpp"
 #include "common/core/defaults.hpp"
 #include "supervisor/core/configuration_check.hpp"
@@ -35,7 +36,8 @@ SupervisorCore::SupervisorCore(config::CompiledSystem system, SupervisorOptions 
 std::optional<SupervisorCore::AxesState> SupervisorCore::axes_state(
     const config::LoadedConfig& config) {
   if (!several_axes(config)) return std::nullopt;
-  return AxesState{config, supervised_axes_params(config), {}};
+  return AxesState{
+      config, supervised_axes_params(config), {}, {}, config::axes_control_fingerprint(config)};
 }
 
 SupervisorCore::SupervisorCore(config::CompiledSystem system, std::optional<AxesState> axes,
@@ -713,7 +715,8 @@ void SupervisorCore::fill_configuration_status(v1::SupervisorStatus& s) const {
   // Several axes: none of its own yet (its one-axis view's would mislead; the nodes' are
   // compared with each other).
   s.set_config_fingerprint(
-      axes_ ? 0 : system_.node(transport::Role::kMaster).settings.config_fingerprint);
+      axes_ ? axes_->fingerprint
+            : system_.node(transport::Role::kMaster).settings.config_fingerprint);
   s.set_configuration_mismatch(configuration_mismatch_);
   s.set_experiment_banner(experiment_banner(source().config.experiment().allow_unstable(),
                                             master_.last ? &*master_.last : nullptr,

@@ -175,6 +175,8 @@ class SupervisorCore {
     // changes live with n > 1 (no change is applied), so a round trip that comes back is not
     // analysed again (with a human band an analysis takes seconds, in the loop).
     std::map<std::pair<double, int>, AxesAssessment> assessed{};
+    // What both nodes of this file compute (config::axes_control_fingerprint).
+    std::uint64_t fingerprint{0};
   };
   [[nodiscard]] static std::optional<AxesState> axes_state(const config::LoadedConfig& config);
   SupervisorCore(config::CompiledSystem system, std::optional<AxesState> axes,

@@ -21,6 +21,7 @@
 
 #include "common/config/axes_config.hpp"
 #include "common/config/config_loader.hpp"
+#include "common/config/node_loader.hpp"
 #include "common/config/parameter_space.hpp"
 #include "common/record/session.hpp"
 #include "common/stability/analysis_axes.hpp"
@@ -249,12 +250,15 @@ TEST(SupervisorAxes, Cartesian3StartReportGivesEachPlanesLimitAndMargin) {
     ++stability_messages;
   }
   EXPECT_EQ(stability_messages, 1);
-  // The session file's metadata: the axes and each plane against its limit; no one-axis
-  // fingerprint of an n-axis file.
+  // The session file's metadata: the axes and each plane against its limit; the fingerprint the
+  // nodes of this file compute (to_node_axes_setup).
   EXPECT_EQ(metadata[std::string(record::metadata::kAnalysis)]["axes"], "3");
   EXPECT_EQ(metadata[std::string(record::metadata::kAnalysis)]["slave_plane_1"],
             r.planes(1).description());
-  EXPECT_EQ(metadata[std::string(record::metadata::kTeleop)]["config_fingerprint"], "");
+  EXPECT_EQ(
+      metadata[std::string(record::metadata::kTeleop)]["config_fingerprint"],
+      config::fingerprint_hex(
+          config::to_node_axes_setup(c, transport::Role::kSlave).settings.config_fingerprint));
   // The status's JSON (as teleopctl status --json prints it) carries the planes.
   google::protobuf::util::JsonPrintOptions jo;
   jo.preserve_proto_field_names = true;
@@ -840,6 +844,58 @@ TEST(SupervisorAxes, AChangeInForceThatARetuneCouldNotCarryIsNotAdoptedButEStopp
     EXPECT_EQ(ports.alarms_of("unapproved_parameters").size(), 1U) << c;
     EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 2U) << c;
     EXPECT_EQ(core.config_in_force().slave().fixture().plane(0).stiffness_n_per_m(), 1500.0) << c;
+  }
+}
+
+// The supervisor's own fingerprint of an n-axis file is the one both nodes compute from it
+// (to_node_axes_setup, each role): nodes running the supervisor's file raise nothing. Both
+// nodes running another file (the master's mass 0.045 kg where the supervisor's says 0.040)
+// agree with each other, so they engage; the supervisor, which analysed the other file, says
+// so: a configuration alarm and the status's mismatch, naming the three fingerprints.
+TEST(SupervisorAxes, NodesRunningAnotherFileThanTheSupervisorsAreAConfigurationMismatch) {
+  const config::LoadedConfig mine = paddles3();
+  std::string other_text = isotropic(3, "[0.6, 0.8, 0]", 1500.0);
+  other_text.replace(other_text.find("mass_kg: 0.040"), 14, "mass_kg: 0.045");
+  const config::LoadedConfig other = config::load_config_text(other_text, "other");
+  const std::uint64_t f_master =
+      config::to_node_axes_setup(mine, transport::Role::kMaster).settings.config_fingerprint;
+  const std::uint64_t f_slave =
+      config::to_node_axes_setup(mine, transport::Role::kSlave).settings.config_fingerprint;
+  const std::uint64_t f_other =
+      config::to_node_axes_setup(other, transport::Role::kMaster).settings.config_fingerprint;
+  ASSERT_EQ(f_master, f_slave);
+  ASSERT_NE(f_master, f_other);
+  for (const bool same : {true, false}) {
+    FakePorts ports;
+    SupervisorCore core(mine, {}, ports);
+    core.start(kT0);
+    EXPECT_EQ(core.status().config_fingerprint(), f_master);
+    std::int64_t now = kT0;
+    for (int i = 0; i < 3; ++i) {
+      now += 20 * kMs;
+      for (const Side side : {Side::kMaster, Side::kSlave}) {
+        v1::Telemetry t;
+        t.set_session_id(side == Side::kMaster ? 11 : 22);
+        t.set_mode(v1::ARMED);
+        t.set_config_fingerprint(same ? f_master : f_other);
+        t.set_peer_config_fingerprint(same ? f_master : f_other);
+        core.on_telemetry(side, t, now);
+      }
+      core.tick(now);
+    }
+    const std::vector<v1::Alarm> alarms = ports.alarms_of("configuration");
+    if (same) {
+      EXPECT_TRUE(alarms.empty()) << alarms.front().message();
+      EXPECT_TRUE(core.status().configuration_mismatch().empty())
+          << core.status().configuration_mismatch();
+      continue;
+    }
+    ASSERT_EQ(alarms.size(), 1U);
+    const std::string& m = alarms[0].message();
+    EXPECT_NE(m.find("supervisor " + config::fingerprint_hex(f_master)), std::string::npos) << m;
+    EXPECT_NE(m.find("master " + config::fingerprint_hex(f_other)), std::string::npos) << m;
+    EXPECT_NE(m.find("slave " + config::fingerprint_hex(f_other)), std::string::npos) << m;
+    EXPECT_FALSE(core.status().configuration_mismatch().empty());
   }
 }
 
