@@ -602,6 +602,13 @@ v1::NodeCommandResult SupervisorCore::forward_node_command(const v1::NodeCommand
     throw std::invalid_argument("node command target '" + target +
                                 "' is not master, slave or both");
   }
+  // The supervisor analysed its own file: nodes that run another (their fingerprints differ
+  // from its own) are not armed or engaged through it, whatever they say to each other.
+  if ((k == v1::NodeCommand::ARM || k == v1::NodeCommand::ENGAGE) &&
+      !configuration_mismatch_.empty()) {
+    throw std::invalid_argument("arm and engage refused by the supervisor: " +
+                                configuration_mismatch_);
+  }
   std::string summary;
   // An e-stop always goes to both, whatever the first answers.
   for (const NodeView* n : {&master_, &slave_}) {

@@ -850,8 +850,9 @@ TEST(SupervisorAxes, AChangeInForceThatARetuneCouldNotCarryIsNotAdoptedButEStopp
 // The supervisor's own fingerprint of an n-axis file is the one both nodes compute from it
 // (to_node_axes_setup, each role): nodes running the supervisor's file raise nothing. Both
 // nodes running another file (the master's mass 0.045 kg where the supervisor's says 0.040)
-// agree with each other, so they engage; the supervisor, which analysed the other file, says
-// so: a configuration alarm and the status's mismatch, naming the three fingerprints.
+// agree with each other, so they would engage; the supervisor, which analysed the other file,
+// says so (a configuration alarm and the status's mismatch, naming the three fingerprints) and
+// refuses to arm or engage them.
 TEST(SupervisorAxes, NodesRunningAnotherFileThanTheSupervisorsAreAConfigurationMismatch) {
   const config::LoadedConfig mine = paddles3();
   std::string other_text = isotropic(3, "[0.6, 0.8, 0]", 1500.0);
@@ -886,11 +887,26 @@ TEST(SupervisorAxes, NodesRunningAnotherFileThanTheSupervisorsAreAConfigurationM
     const std::vector<v1::Alarm> alarms = ports.alarms_of("configuration");
     if (same) {
       EXPECT_TRUE(alarms.empty()) << alarms.front().message();
+      v1::SupervisorRequest req;
+      req.mutable_node_command()->set_kind(v1::NodeCommand::ARM);
+      EXPECT_TRUE(core.on_request(req, "", now).error().empty());
+      EXPECT_EQ(ports.sent_of(v1::NodeCommand::ARM), 2U);
       EXPECT_TRUE(core.status().configuration_mismatch().empty())
           << core.status().configuration_mismatch();
       continue;
     }
     ASSERT_EQ(alarms.size(), 1U);
+    // Arm and engage through the supervisor are refused, naming the mismatch; nothing is sent.
+    for (const auto kind : {v1::NodeCommand::ARM, v1::NodeCommand::ENGAGE}) {
+      v1::SupervisorRequest req;
+      req.mutable_node_command()->set_kind(kind);
+      const v1::SupervisorReply reply = core.on_request(req, "", now);
+      EXPECT_NE(reply.error().find("arm and engage refused by the supervisor: configuration "
+                                   "fingerprints differ"),
+                std::string::npos)
+          << reply.error();
+    }
+    EXPECT_EQ(ports.sent_of(v1::NodeCommand::ARM) + ports.sent_of(v1::NodeCommand::ENGAGE), 0U);
     const std::string& m = alarms[0].message();
     EXPECT_NE(m.find("supervisor " + config::fingerprint_hex(f_master)), std::string::npos) << m;
     EXPECT_NE(m.find("master " + config::fingerprint_hex(f_other)), std::string::npos) << m;
