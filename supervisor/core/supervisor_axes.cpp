@@ -426,6 +426,46 @@ void SupervisorCore::apply_axes_change(const AxesChange& change, const AxesDecis
   publish_axes_report("parameter change " + std::to_string(id) + ": " + who);
 }
 
+// The n-axis ladder's lowering (escalation.hpp), as lower_fixtures for one axis: every plane in
+// use to half its stiffness, never above half its limit in the assessment in force, as one
+// guarded change (requested by "supervisor"), analysed beside the loop like an operator's and
+// sent to both nodes once accepted. A lowering that cannot be asked for now (another change
+// being assessed) or is refused leaves the ladder's next step, disengaging, to act.
+SupervisorCore::Lowering SupervisorCore::lower_planes(const std::string& why) {
+  v1::ParameterChangeRequest c;
+  c.set_requested_by("supervisor");
+  std::string planes;
+  for (const auto& [slave, list] : {std::pair{false, &axes_->params.master_planes},
+                                    std::pair{true, &axes_->params.slave_planes}}) {
+    for (std::size_t i = 0; i < list->size(); ++i) {
+      const double now = (*list)[i].stiffness_N_per_m;
+      if (!(now > 0.0)) continue;
+      double target = 0.5 * now;
+      for (const PlaneMargin& m : axes_->assessment.planes) {
+        if ((m.side == stability::Side::kSlave) == slave && m.plane == i && m.max_stable_N_per_m) {
+          target = std::min(target, 0.5 * *m.max_stable_N_per_m);
+        }
+      }
+      v1::PlaneStiffnessChange& p = *c.add_plane_stiffness();
+      p.set_slave(slave);
+      p.set_plane(static_cast<std::uint32_t>(i));
+      p.set_stiffness_n_per_m(target);
+      planes += fmt::format("{}{} plane {} {:.0f} -> {:.0f} N/m", planes.empty() ? "" : ", ",
+                            slave ? "slave" : "master", i, now, target);
+    }
+  }
+  if (c.plane_stiffness_size() == 0) return {false, "no plane to lower"};
+  spdlog::warn("lowering the planes: {}", why);
+  v1::SupervisorReply reply;
+  request_axes_change(c, reply);
+  if (!reply.change().pending()) {
+    return {false, "could not lower the planes: " + reply.change().reason()};
+  }
+  return {true, fmt::format("lowering the planes (change request {}, analysed by the guard, then "
+                            "sent to both nodes): {}",
+                            reply.change().request_id(), planes)};
+}
+
 // A supervisor (re)started on running n-axis nodes, as for one axis (adopt_parameters_in_force):
 // a guarded change an earlier supervisor made (a change number above this one's) is adopted, its
 // gain matrices and plane stiffnesses validated first by the rules a RETUNE meets

@@ -159,8 +159,8 @@ void SupervisorCore::update_model() {
         {{"round_trip_p99", static_cast<double>(rtt) * 1e-6, "ms"}});
   publish_report(rtt_grew ? "round trip grew" : "measured inputs changed");
   if (axes_) {
-    // The n-axis ladder does not lower planes (a guarded n-axis change is analysed beside the
-    // loop, seconds with a band): the next step of the ladder is taken at once.
+    // A lowering of the planes is a guarded n-axis change, analysed beside the loop (seconds
+    // with a band) while this model is unstable now: both nodes are disengaged at once.
     if (axes_->assessment.acceptable()) return;
     const auto coupled = [](const NodeView& v) {
       return v.mode == v1::ALIGNING || v.mode == v1::ENGAGED || v.mode == v1::CLUTCHED;
@@ -171,8 +171,8 @@ void SupervisorCore::update_model() {
         coupled(slave_) ? command(Side::kSlave, v1::NodeCommand::DISENGAGE) : std::nullopt;
     alarm(v1::Alarm::CRITICAL, "round_trip", "system",
           fmt::format("the {}-axis model with a {}-sample round trip at {:.1f} Hz no longer meets "
-                      "the requirement; the supervisor cannot retune n > 1 planes from its "
-                      "ladder yet, so the planes are not lowered",
+                      "the requirement; lowering the planes would wait for the guard's "
+                      "analysis, so both nodes are disengaged now",
                       axes_->params.axes, live_.round_trip_samples, live_.sample_rate_hz),
           {{"round_trip_p99", static_cast<double>(measured_round_trip_ns_) * 1e-6, "ms"},
            {"min_damping_ratio", axes_->assessment.min_damping_ratio, ""}},
@@ -275,22 +275,15 @@ void SupervisorCore::check_findings() {
       case EscalationAction::kWarn:
         alarm(v1::Alarm::WARNING, f.kind, n->name, f.what, f.evidence);
         break;
-      case EscalationAction::kLowerFixtures:
-        if (axes_) {
-          // The one-axis ladder lowers the fixtures here by a RETUNE; the n-axis ladder does
-          // not lower planes yet: the next step instead.
-          disengage_both(*n, f,
-                         fmt::format("lasted {:g} ms; the supervisor cannot retune n > 1 "
-                                     "planes from its ladder yet, so the planes are not lowered",
-                                     static_cast<double>(escalation_ns_) * 1e-6));
-          break;
-        }
+      case EscalationAction::kLowerFixtures: {
+        const std::string why = f.what + " on the " + n->name;
         alarm(v1::Alarm::ACTION, f.kind, n->name, f.what, f.evidence,
-              lower_fixtures(f.what + " on the " + n->name).action);
+              (axes_ ? lower_planes(why) : lower_fixtures(why)).action);
         break;
+      }
       case EscalationAction::kDisengage:
         if (axes_) {
-          disengage_both(*n, f, "persisted after both nodes were disengaged");
+          disengage_both(*n, f, "persisted after lowering the planes");
           break;
         }
         disengage_both(*n, f);

@@ -18,7 +18,9 @@
 // watch every axis and the vector port f . v, a change of plane stiffnesses or gain-matrix
 // elements is analysed beside the loop (assess_axes_change, per plane against its exact limit)
 // and, when admissible, sent to both nodes as an n-axis RETUNE, whose values in force are then
-// audited per element; where the one-axis ladder lowers a fixture, the n-axis one disengages.
+// audited per element; the ladder lowers every plane as the one-axis one lowers the fixtures
+// (a guarded change, lower_planes), and a measured model that misses its requirement
+// disengages both nodes.
 // One axis takes today's path exactly.
 #pragma once
 
@@ -314,6 +316,7 @@ class SupervisorCore {
   void disengage_both(const NodeView& n, const Finding& f,
                       const std::string& why = "persisted after lowering the fixtures");
   Lowering lower_fixtures(const std::string& why);
+  Lowering lower_planes(const std::string& why);
   void announce_lowering(const Lowering& l, const char* suffix);
   void check_recorder();
 

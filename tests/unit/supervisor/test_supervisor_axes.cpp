@@ -340,6 +340,17 @@ TEST(SupervisorAxes, AOneAxisFileKeepsTheOneAxisReport) {
 
 // ---- step 2: the monitors --------------------------------------------------------------------
 
+// Ticks the core (10 ms of fake time a tick, 5 ms of real time) until the n-axis change request
+// `id` is decided: the guard runs on a thread of its own.
+v1::ParameterChangeReply await_decision(SupervisorCore& core, std::int64_t& now, std::uint64_t id) {
+  for (int i = 0; i < 4000 && core.status().last_change().request_id() != id; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    now += 10 * kMs;
+    core.tick(now);
+  }
+  return core.status().last_change();
+}
+
 // 180 Hz, 0.5 mm on the slave's axis 2 (axes count from 0, as `teleopctl analyze` prints them),
 // about a still position on the other two.
 constexpr double kBuzzHz = 180.0;
@@ -352,12 +363,16 @@ Axes3 buzz_on_axis_2(double t) {
   return a;
 }
 
-TEST(SupervisorAxes, ABuzzOnOneAxisIsAlarmedNamingThatAxisThenBothNodesDisengagedWithoutRetune) {
+// The ladder as for one axis (escalation.hpp): warned, then every plane in use lowered to half
+// its stiffness (the slave's plane 1500 -> 750 N/m, below half its limit, 4344 N/m) by a guarded
+// change to both nodes, then, the buzz going on once that is in force, both disengaged.
+TEST(SupervisorAxes, ABuzzOnOneAxisIsAlarmedNamingThatAxisThenThePlanesLoweredThenDisengaged) {
   const config::LoadedConfig c = paddles3();
   FakePorts ports;
   SupervisorCore core(c, {}, ports);
   core.start(kT0);
   run(core, ports, kT0, 2000 * kMs, quiet, buzz_on_axis_2);
+  std::int64_t now = kT0 + 2000 * kMs;
   const auto osc = ports.alarms_of("oscillation");
   ASSERT_GE(osc.size(), 2U);
   for (const v1::Alarm& a : osc) {
@@ -373,18 +388,37 @@ TEST(SupervisorAxes, ABuzzOnOneAxisIsAlarmedNamingThatAxisThenBothNodesDisengage
   EXPECT_EQ(osc[0].severity(), v1::Alarm::WARNING);
   EXPECT_GE(osc[0].time_ns(), kT0 + 1000 * kMs);
   EXPECT_LE(osc[0].time_ns(), kT0 + 1100 * kMs);
-  // Where one axis would lower the fixtures (escalation_ms = 500 ms on), n > 1 disengages and
-  // says why; no RETUNE ever goes out.
+  // escalation_ms (500 ms) on: the planes lowered, through the guard.
   const v1::Alarm& acted = osc.back();
-  EXPECT_EQ(acted.severity(), v1::Alarm::CRITICAL);
+  EXPECT_EQ(acted.severity(), v1::Alarm::ACTION);
   EXPECT_GE(acted.time_ns() - osc[0].time_ns(), 500 * kMs);
   EXPECT_LE(acted.time_ns() - osc[0].time_ns(), 600 * kMs);
-  EXPECT_NE(acted.message().find("cannot retune"), std::string::npos) << acted.message();
-  EXPECT_NE(acted.action().find("disengaged both nodes (master ARMED, slave ARMED)"),
-            std::string::npos)
+  EXPECT_NE(acted.action().find("lowering the planes"), std::string::npos) << acted.action();
+  EXPECT_NE(acted.action().find("slave plane 0 1500 -> 750 N/m"), std::string::npos)
       << acted.action();
+  const v1::ParameterChangeReply decided = await_decision(core, now, 1);
+  ASSERT_TRUE(decided.accepted()) << decided.reason();
+  EXPECT_EQ(decided.change_id(), 1U);
+  ASSERT_EQ(ports.sent_of(v1::NodeCommand::RETUNE), 2U);
+  for (const auto& [side, cmd] : ports.sent) {
+    if (cmd.kind() != v1::NodeCommand::RETUNE) continue;
+    ASSERT_EQ(cmd.update().slave_plane_stiffness_n_per_m_size(), 1);
+    EXPECT_EQ(cmd.update().slave_plane_stiffness_n_per_m(0), 750.0);
+  }
+  EXPECT_EQ(core.config_in_force().slave().fixture().plane(0).stiffness_n_per_m(), 750.0);
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::DISENGAGE), 0U);
+  // The buzz goes on with the lowered plane in force: both nodes disengaged, and said why.
+  run(core, ports, now, 2500 * kMs, quiet, buzz_on_axis_2);
+  const auto after = ports.alarms_of("oscillation");
+  const v1::Alarm& last = after.back();
+  EXPECT_EQ(last.severity(), v1::Alarm::CRITICAL);
+  EXPECT_NE(last.message().find("persisted after lowering the planes"), std::string::npos)
+      << last.message();
+  EXPECT_NE(last.action().find("disengaged both nodes (master ARMED, slave ARMED)"),
+            std::string::npos)
+      << last.action();
   EXPECT_EQ(ports.sent_of(v1::NodeCommand::DISENGAGE), 2U);
-  EXPECT_EQ(ports.sent_of(v1::NodeCommand::RETUNE), 0U);
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::RETUNE), 2U);  // lowered once
   EXPECT_TRUE(ports.alarms_of("passivity").empty());
   EXPECT_TRUE(ports.alarms_of("telemetry").empty());
 }
@@ -445,9 +479,11 @@ TEST(SupervisorAxes, AnActiveVectorPortTripsThePassivityAlarmWithItsEnergy) {
   // Found at the first check after it crossed: within a check (100 ms) and a telemetry (20 ms).
   EXPECT_GT(want, -0.005 - 0.129 * 0.12);
   EXPECT_NEAR(a.evidence(2).value(), -0.129, 1e-9);  // the power over the last second, W
-  // Lasting escalation_ms, it disengages (no RETUNE).
-  EXPECT_EQ(pas.back().severity(), v1::Alarm::CRITICAL);
-  EXPECT_EQ(ports.sent_of(v1::NodeCommand::RETUNE), 0U);
+  // Lasting escalation_ms, the planes are lowered, as for one axis (the buzz test follows the
+  // lowering to its RETUNE).
+  EXPECT_EQ(pas.back().severity(), v1::Alarm::ACTION);
+  EXPECT_NE(pas.back().action().find("lowering the planes"), std::string::npos)
+      << pas.back().action();
   EXPECT_TRUE(ports.alarms_of("oscillation").empty());
 }
 
@@ -527,7 +563,8 @@ TEST(SupervisorAxes, ALongerRoundTripThatMakesTheModelUnstableDisengagesWithoutR
   const auto rt = ports.alarms_of("round_trip");
   ASSERT_FALSE(rt.empty());
   EXPECT_EQ(rt.back().severity(), v1::Alarm::CRITICAL);
-  EXPECT_NE(rt.back().message().find("cannot retune"), std::string::npos) << rt.back().message();
+  EXPECT_NE(rt.back().message().find("both nodes are disengaged now"), std::string::npos)
+      << rt.back().message();
   EXPECT_NE(rt.back().action().find("disengaged both nodes (master ARMED, slave ARMED)"),
             std::string::npos)
       << rt.back().action();
@@ -617,18 +654,6 @@ TEST(SupervisorAxes, ARefusedChangeSaysWhatTheGuardWouldDecideForEachPlane) {
 }
 
 // ---- guarded n-axis changes -------------------------------------------------------------------
-
-// Ticks the core (10 ms of fake time a tick, 5 ms of real time) until the n-axis change request
-// `id` is decided: the guard runs on a thread of its own.
-v1::ParameterChangeReply await_decision(SupervisorCore& core, std::int64_t& now, std::uint64_t id) {
-  for (int i = 0; i < 4000 && core.status().last_change().request_id() != id; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    now += 10 * kMs;
-    core.tick(now);
-  }
-  return core.status().last_change();
-}
-
 v1::SupervisorRequest plane_request(double k, bool dry_run = false) {
   v1::SupervisorRequest req;
   v1::PlaneStiffnessChange& p = *req.mutable_change()->add_plane_stiffness();
