@@ -104,7 +104,8 @@ class Child {
     // Everything the child needs is made before the fork: this process has threads (ZeroMQ's,
     // the telemetry taps'), so the child may call only async-signal-safe functions until its
     // exec. An allocation there can wait forever on a lock another thread held at the fork
-    // (ASan's allocator has no fork handler): a supervisor that never started, its log empty.
+    // (clang 14's ASan takes no allocator lock around fork): a supervisor that never started, its
+    // log empty.
     std::vector<char*> argv;
     argv.reserve(args.size() + 2);
     argv.push_back(const_cast<char*>(binary.c_str()));
