@@ -527,6 +527,26 @@ void SupervisorCore::adopt_axes_parameters_in_force(const v1::Telemetry& t) {
         {{"change_id", static_cast<double>(a.change_id()), ""}});
   publish_axes_report(fmt::format("adopted the parameters in force (change {})", a.change_id()));
   publish_config();
+  // Adopted, but not taken on trust: a change that misses the requirement with this
+  // supervisor's model (its round trip, its human) disengages both nodes at once, as a model
+  // that stops meeting it does; the operator may then lower it with `teleopctl set`.
+  if (axes_->assessment.acceptable()) return;
+  const auto coupled = [](const NodeView& v) {
+    return v.mode == v1::ALIGNING || v.mode == v1::ENGAGED || v.mode == v1::CLUTCHED;
+  };
+  // Heard from the master first: a coupled master means a coupled slave, not yet heard.
+  const bool move = coupled(master_) || coupled(slave_);
+  const auto rm = move ? command(Side::kMaster, v1::NodeCommand::DISENGAGE) : std::nullopt;
+  const auto rs = move ? command(Side::kSlave, v1::NodeCommand::DISENGAGE) : std::nullopt;
+  alarm(v1::Alarm::CRITICAL, "supervisor", "system",
+        fmt::format("the adopted change {} does not meet the requirement: {} (least damping "
+                    "ratio {:.4f}, required {:.4f})",
+                    a.change_id(), report_.verdict(), report_.min_damping_ratio(),
+                    report_.required_damping_ratio()),
+        {{"min_damping_ratio", axes_->assessment.min_damping_ratio, ""}},
+        fmt::format("disengaged both nodes (master {}, slave {})",
+                    rm ? v1::NodeMode_Name(rm->mode()) : v1::NodeMode_Name(master_.mode),
+                    rs ? v1::NodeMode_Name(rs->mode()) : v1::NodeMode_Name(slave_.mode)));
 }
 
 // Several axes: each node's fingerprint against the one both nodes of this file compute

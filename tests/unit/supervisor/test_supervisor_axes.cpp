@@ -851,6 +851,32 @@ TEST(SupervisorAxes, ARestartedSupervisorAdoptsTheNAxisChangeInForceAndNumbersTh
   EXPECT_TRUE(ports.alarms_of("unapproved_parameters").empty());
 }
 
+// Adopted, not trusted: a change in force whose plane (9000 N/m) is above its limit with this
+// supervisor's model (4344 N/m, the isotropic reduction's one-axis limit at one sample of round
+// trip: the start report) is adopted (no e-stop, no unapproved alarm) but disengages both
+// engaged nodes with a CRITICAL alarm naming the change.
+TEST(SupervisorAxes, AnAdoptedChangeThatMissesTheRequirementDisengagesBothNodes) {
+  FakePorts ports;
+  SupervisorCore core(paddles3(), {}, ports);
+  core.start(kT0);
+  ASSERT_EQ(ports.reports.at(0).planes_size(), 1);
+  ASSERT_LT(ports.reports.at(0).planes(0).max_stable_stiffness_n_per_m(), 9000.0);
+  core.on_telemetry(Side::kMaster, active_paddles3(11, 3, 9000.0, 1.0), kT0 + kMs);
+  EXPECT_TRUE(ports.alarms_of("unapproved_parameters").empty());
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::ESTOP), 0U);
+  EXPECT_EQ(ports.sent_of(v1::NodeCommand::DISENGAGE), 2U);
+  bool said = false;
+  for (const v1::Alarm& a : ports.alarms_of("supervisor")) {
+    if (a.severity() == v1::Alarm::CRITICAL &&
+        a.message().find("the adopted change 3 does not meet the requirement") !=
+            std::string::npos) {
+      said = a.action().find("disengaged both nodes") != std::string::npos;
+    }
+  }
+  EXPECT_TRUE(said);
+  EXPECT_EQ(ports.reports.back().verdict(), "unstable");
+}
+
 // What a RETUNE could not carry is not adopted, whatever change number it claims: a NaN plane
 // stiffness, an indefinite gain matrix (kps 600 I with -700 at (0, 1) and (1, 0): eigenvalue
 // -100), a plane too many. Each is found unapproved by the audit: CRITICAL, both nodes e-stopped.
