@@ -188,8 +188,8 @@ void SupervisorCore::update_model() {
   // Announced like every change the supervisor makes: an ACTION alarm naming it. A refused
   // lowering is tried again kLoweringRetryNs after this attempt.
   last_lowering_try_ns_ = now_ns_;
-  const Lowering l = lower_fixtures(rtt_grew ? "the measured round trip grew"
-                                             : "the measured round trip or rate changed");
+  lowering_why_ = "the measured round trip or rate changed";
+  const Lowering l = lower_fixtures(rtt_grew ? "the measured round trip grew" : lowering_why_);
   announce_lowering(l, "");
   lowering_pending_ = !l.applied;
 }
@@ -214,7 +214,7 @@ void SupervisorCore::retry_lowering() {
     lowering_pending_ = false;
     return;
   }
-  const Lowering l = lower_fixtures("the measured round trip or rate changed (retried)");
+  const Lowering l = lower_fixtures(lowering_why_ + " (retried)");
   if (!l.applied) return;
   lowering_pending_ = false;
   announce_lowering(l, " (retried)");

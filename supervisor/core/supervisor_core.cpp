@@ -521,6 +521,17 @@ void SupervisorCore::adopt_parameters_in_force(const v1::Telemetry& t) {
           {{"change_id", static_cast<double>(a.change_id()), ""}});
     publish_report(fmt::format("adopted the parameters in force (change {})", a.change_id()));
     publish_config();
+    // Adopted, not trusted: a change that misses the requirement with this supervisor's model
+    // (its round trip, its human) lowers the fixtures, as a model that stops meeting it does,
+    // retried until applied (the slave may not have been heard yet).
+    if (guard_.assess(live_).acceptable()) return;
+    last_lowering_try_ns_ = now_ns_;
+    lowering_why_ = fmt::format("the adopted change {} misses the requirement", a.change_id());
+    const Lowering l = lower_fixtures(lowering_why_);
+    alarm(v1::Alarm::ACTION, "supervisor", "system",
+          lowering_why_ + " with this supervisor's model",
+          {{"min_damping_ratio", guard_.assess(live_).min_damping_ratio, ""}}, l.action);
+    lowering_pending_ = !l.applied;
   } else if (coupling(t.mode())) {
     alarm(v1::Alarm::WARNING, "supervisor", "system",
           fmt::format("started with the nodes already {} (configured parameters in force)",

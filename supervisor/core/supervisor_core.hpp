@@ -345,6 +345,8 @@ class SupervisorCore {
   // The round-trip guard's lowering was refused (retried every kLoweringRetryNs).
   bool lowering_pending_{false};
   std::int64_t last_lowering_try_ns_{0};
+  // Why the pending lowering is wanted (said again when it is retried).
+  std::string lowering_why_{"the measured round trip or rate changed"};
   EscalationLadder ladder_{0, 0};
   std::uint64_t change_id_{0};
   std::uint64_t last_sent_change_id_{0};  // the newest change number sent, taken or not

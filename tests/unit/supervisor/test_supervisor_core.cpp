@@ -502,6 +502,52 @@ TEST(SupervisorCore, AParameterInForceThatWasNotApprovedEStopsBothNodes) {
       << u[0].action();
 }
 
+// A supervisor restarted on nodes that run a guarded change (change 3, the slave fixture at
+// 9000 N/m) adopts it, but does not take it on trust: the paddles' limit at the supervisor's
+// one-sample round trip (the analyser's, computed here independently) is far lower, so the
+// fixtures are lowered (to half that limit at most) by change 4 on both nodes, announced as an
+// ACTION. No e-stop: the values were approved by a supervisor.
+TEST(SupervisorCore, AnAdoptedChangeThatMissesTheRequirementLowersTheFixtures) {
+  const config::LoadedConfig c = config::load_config_text(paddles(1500.0), "test");
+  TeleopParams p = config::to_teleop_params(c);
+  const stability::StiffnessLimit l1 = stability::max_stable_stiffness(p, stability::Side::kSlave);
+  ASSERT_TRUE(l1.max_stable_stiffness_N_per_m.has_value());
+  ASSERT_LT(*l1.max_stable_stiffness_N_per_m, 9000.0);
+  FakeNodes nodes(c);
+  v1::NodeCommand earlier;
+  earlier.set_kind(v1::NodeCommand::RETUNE);
+  earlier.mutable_update()->set_change_id(3);
+  *earlier.mutable_update()->mutable_gains() = c.config.gains();
+  earlier.mutable_update()->set_slave_fixture_stiffness_n_per_m(9000.0);
+  for (const Side side : {Side::kMaster, Side::kSlave}) (void)nodes.command(side, earlier);
+  nodes.sent.clear();
+  SupervisorCore core(c, {}, nodes);
+  core.start(kT0);
+  nodes.run(core, kT0, kT0 + 1000 * kMs, still);
+  EXPECT_TRUE(nodes.alarms_of("unapproved_parameters").empty());
+  EXPECT_TRUE(nodes.sent_of(v1::NodeCommand::ESTOP).empty());
+  std::optional<v1::Alarm> action;
+  for (const v1::Alarm& a : nodes.alarms) {
+    if (a.severity() == v1::Alarm::ACTION && !action) action = a;
+  }
+  ASSERT_TRUE(action.has_value());
+  EXPECT_NE(action->message().find("the adopted change 3 misses the requirement"),
+            std::string::npos)
+      << action->message();
+  const auto retunes = nodes.sent_of(v1::NodeCommand::RETUNE);
+  ASSERT_GE(retunes.size(), 2u);
+  const v1::ParameterUpdate& u = retunes.back().command.update();
+  EXPECT_EQ(u.change_id(), 4u);
+  EXPECT_LE(u.slave_fixture_stiffness_n_per_m(), 0.5 * *l1.max_stable_stiffness_N_per_m + 1e-9);
+  EXPECT_EQ(nodes.active(Side::kMaster).slave_fixture_stiffness_n_per_m(),
+            u.slave_fixture_stiffness_n_per_m());
+  EXPECT_EQ(nodes.active(Side::kSlave).slave_fixture_stiffness_n_per_m(),
+            u.slave_fixture_stiffness_n_per_m());
+  p.slave_fixture.stiffness_N_per_m = u.slave_fixture_stiffness_n_per_m();
+  EXPECT_EQ(stability::analyze(p).verdict, stability::Verdict::kStable);
+  EXPECT_FALSE(core.lowering_pending());
+}
+
 // Issue 16 review: a change the master took and the slave refused left the master on the new
 // values and the slave on the old ones, a pair nobody analysed. It is rolled back on both
 // (previous values, a new change number); if that fails too, both nodes are e-stopped.
