@@ -140,32 +140,36 @@ class TempDir {
   std::filesystem::path path_;
 };
 
+// `binary` with `args` started in a child process, its stdout+stderr in `log`: the child's pid.
+// Everything the child needs is made before the fork: this process has threads (ZeroMQ's, the
+// telemetry taps'), so the child may call only async-signal-safe functions until its exec. An
+// allocation there can wait forever on a lock another thread held at the fork (clang 14's ASan
+// takes no allocator lock around fork): a supervisor that never started, its log empty.
+inline pid_t spawn_logged(const std::string& binary, const std::vector<std::string>& args,
+                          const std::filesystem::path& log) {
+  std::vector<char*> argv;
+  argv.reserve(args.size() + 2);
+  argv.push_back(const_cast<char*>(binary.c_str()));
+  for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const std::string log_path = log.string();
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(fd, 1);
+    ::dup2(fd, 2);
+    ::execv(argv[0], argv.data());
+    ::_exit(127);
+  }
+  return pid;
+}
+
 // A child process with its stdout+stderr in a file.
 class Process {
  public:
   Process(const std::string& binary, const std::vector<std::string>& args,
           const std::filesystem::path& log)
-      : log_(log) {
-    // Everything the child needs is made before the fork: this process has threads (ZeroMQ's,
-    // the telemetry taps'), so the child may call only async-signal-safe functions until its
-    // exec. An allocation there can wait forever on a lock another thread held at the fork
-    // (clang 14's ASan takes no allocator lock around fork): a supervisor that never started, its
-    // log empty.
-    std::vector<char*> argv;
-    argv.reserve(args.size() + 2);
-    argv.push_back(const_cast<char*>(binary.c_str()));
-    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    const std::string log_path = log.string();
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      const int fd = ::open(log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-      ::dup2(fd, 1);
-      ::dup2(fd, 2);
-      ::execv(argv[0], argv.data());
-      ::_exit(127);
-    }
-  }
+      : log_(log), pid_(spawn_logged(binary, args, log)) {}
   ~Process() {
     if (pid_ > 0 && !waited_) {
       ::kill(pid_, SIGKILL);

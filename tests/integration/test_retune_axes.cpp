@@ -32,6 +32,14 @@ std::string system_text(const Ports& p, const std::string& extra) {
                            "link { engage_ramp_ms: 20 }\n" + extra);
 }
 
+// The supervisor on `report` and `request`, not recording, with a `ramp_ms` change ramp, and the
+// nodes taking its plaintext RETUNEs.
+std::string supervised(int report, int request, int ramp_ms) {
+  return "supervisor { report_endpoint: \"" + tcp(report) + "\" request_endpoint: \"" +
+         tcp(request) + "\" record: false change_ramp_ms: " + std::to_string(ramp_ms) +
+         " }\nsecurity { allow_unauthenticated_retune: true }\n";
+}
+
 // The slave's penetration into the wall along n at rest, by hand (test_nodes_axes.cpp's
 // derivation): (k_h + k_c) x_m - k_c x_s = F and -k_c x_m + (k_c + K) x_s = K p, so
 // x_s = (k_c F + (k_h + k_c) K p) / ((k_h + k_c)(k_c + K) - k_c^2), penetration x_s - p.
@@ -81,11 +89,7 @@ TEST(RetuneAxes, TeleopctlSetSoftensATiltedPlaneOnBothNodesRampedAndThePenetrati
   const int report = free_port();
   const int request = free_port();
   const auto config =
-      dir.write("cartesian3.textproto",
-                system_text(ports, "supervisor { report_endpoint: \"" + tcp(report) +
-                                       "\" request_endpoint: \"" + tcp(request) +
-                                       "\" record: false change_ramp_ms: 400 }\n"
-                                       "security { allow_unauthenticated_retune: true }\n"));
+      dir.write("cartesian3.textproto", system_text(ports, supervised(report, request, 400)));
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));
@@ -223,11 +227,7 @@ TEST(RetuneAxes, ASupervisorRestartedAfterAChangeAdoptsItAndTheNodesStayEngaged)
   const int report = free_port();
   const int request = free_port();
   const auto config =
-      dir.write("cartesian3.textproto",
-                system_text(ports, "supervisor { report_endpoint: \"" + tcp(report) +
-                                       "\" request_endpoint: \"" + tcp(request) +
-                                       "\" record: false change_ramp_ms: 50 }\n"
-                                       "security { allow_unauthenticated_retune: true }\n"));
+      dir.write("cartesian3.textproto", system_text(ports, supervised(report, request, 50)));
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
   TelemetryTap st(ctx, tcp(ports.slave_telemetry));
@@ -323,11 +323,8 @@ TEST(RetuneAxes, ABuzzingPlaneIsLoweredByTheLadderOnBothNodesAndTheBuzzStopsOrTh
       "scene { duration_s: 60 human_force { ramp { from_N: 0 to_N: 2 start_s: 0.2 "
       "duration_s: 0.5 } } human_force_direction: [0, 0, 1] }\n"
       "link { engage_ramp_ms: 20 }\n"
-      "experiment { allow_unstable: true }\n"
-      "supervisor { report_endpoint: \"" +
-      tcp(report) + "\" request_endpoint: \"" + tcp(request) +
-      "\" record: false }\n"
-      "security { allow_unauthenticated_retune: true }\n";
+      "experiment { allow_unstable: true }\n" +
+      supervised(report, request, 200);
   const auto config = dir.write("buzz3.textproto", config_text);
   zmq::context_t ctx(1);
   TelemetryTap mt(ctx, tcp(ports.master_telemetry));
